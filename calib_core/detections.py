@@ -1,0 +1,128 @@
+"""``detections.yaml`` (format sonar-camera-detections/1): read, validate, merge, write.
+
+In memory, detections are a plain dict ``{capture_id: {sensor: entry}}`` where
+``sensor`` is ``"sonar"`` or a camera name and ``entry`` is a dict with at least
+``status`` (auto / accepted / corrected / rejected) and, unless rejected or not
+found, ``center`` ([x, y, z] metres in the sonar frame, or [u, v] raw pixels).
+Extra keys are kept as they are.
+"""
+
+from __future__ import annotations
+
+import copy
+import datetime as _dt
+import math
+from pathlib import Path
+
+from calib_core.errors import SessionError
+from calib_core.io.atomic import atomic_write_yaml
+
+DETECTIONS_FORMAT = "sonar-camera-detections/1"
+DETECTIONS_FILE = "detections.yaml"
+STATUSES = ("auto", "accepted", "corrected", "rejected")
+OPERATOR_STATUSES = ("accepted", "corrected", "rejected")
+
+
+def detections_path(session) -> Path:
+    return Path(session.root) / DETECTIONS_FILE
+
+
+def load_detections(session) -> dict:
+    """Read and validate the session's detections.yaml ({} when it does not exist)."""
+    from calib_core.session import read_yaml_mapping
+
+    path = detections_path(session)
+    if not path.exists():
+        return {}
+    data = read_yaml_mapping(path, "detections file")
+    fmt = data.get("format", DETECTIONS_FORMAT)
+    if fmt != DETECTIONS_FORMAT:
+        raise SessionError(path, f"format '{fmt}' is not {DETECTIONS_FORMAT}")
+    caps = data.get("captures") or {}
+    if not isinstance(caps, dict):
+        raise SessionError(path, "'captures' must map capture ids to sensors")
+    known = {c.id for c in session.captures}
+    sensors = {"sonar", *session.cameras}
+    out: dict = {}
+    for cid, entries in caps.items():
+        cid = str(cid)
+        if cid not in known:
+            raise SessionError(path, f"capture '{cid}' is not in session.yaml")
+        if not isinstance(entries, dict):
+            raise SessionError(path, f"captures.{cid} must map sensor names to entries")
+        out[cid] = {}
+        for sensor, e in entries.items():
+            sensor = str(sensor)
+            if sensor not in sensors:
+                raise SessionError(path, f"captures.{cid}: unknown sensor '{sensor}' (expected one of {', '.join(sorted(sensors))})")
+            out[cid][sensor] = _check_entry(path, f"captures.{cid}.{sensor}", e, 3 if sensor == "sonar" else 2)
+    return out
+
+
+def _check_entry(path: Path, what: str, e, dim: int) -> dict:
+    if not isinstance(e, dict):
+        raise SessionError(path, f"{what} must be a mapping with 'status' (and 'center')")
+    status = e.get("status", "auto")
+    if status not in STATUSES:
+        raise SessionError(path, f"{what}.status '{status}' is not one of {', '.join(STATUSES)}")
+    e = dict(e)
+    e["status"] = status
+    c = e.get("center")
+    if c is not None:
+        if not isinstance(c, list) or len(c) != dim or not all(
+            isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in c
+        ):
+            raise SessionError(path, f"{what}.center must be {dim} finite numbers, got {c!r}")
+        e["center"] = [float(v) for v in c]
+    elif status in ("accepted", "corrected"):
+        raise SessionError(path, f"{what} is '{status}' but has no center")
+    return e
+
+
+def save_detections(session, detections: dict) -> None:
+    """Write detections.yaml atomically (captures in manifest order)."""
+    order = [c.id for c in session.captures]
+    caps = {cid: detections[cid] for cid in order if cid in detections and detections[cid]}
+    atomic_write_yaml(detections_path(session), {"format": DETECTIONS_FORMAT, "captures": _plain(caps)})
+
+
+def _plain(x):
+    """Convert numpy scalars/arrays to plain Python for YAML."""
+    try:
+        import numpy as np
+
+        if isinstance(x, np.ndarray):
+            return [_plain(v) for v in x.tolist()]
+        if isinstance(x, np.generic):
+            return x.item()
+    except ImportError:  # pragma: no cover
+        pass
+    if isinstance(x, dict):
+        return {str(k): _plain(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_plain(v) for v in x]
+    return x
+
+
+def is_operator_entry(entry: dict | None) -> bool:
+    return bool(entry) and entry.get("status") in OPERATOR_STATUSES
+
+
+def merge_auto(existing: dict, auto: dict) -> dict:
+    """Merge fresh automatic detections into existing ones.
+
+    Entries an operator set (accepted / corrected / rejected) are never overwritten;
+    missing or ``auto`` entries are replaced by the new automatic result.
+    """
+    out = copy.deepcopy(existing)
+    for cid, sensors in auto.items():
+        for sensor, entry in sensors.items():
+            if is_operator_entry(out.get(cid, {}).get(sensor)):
+                continue
+            out.setdefault(cid, {})[sensor] = dict(entry, status="auto")
+    return out
+
+
+def now_iso() -> str:
+    """UTC timestamp for change records."""
+    return _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds")

@@ -1,0 +1,23 @@
+"""The one exception type for problems a user can fix (bad files, bad values).
+
+Shells (CLI, workbench) turn it into a single message and exit status 2;
+they never show a traceback for it.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+
+class SessionError(Exception):
+    """A problem with a user's file or input, with the file named.
+
+    Attributes:
+        path: the file or folder the problem is in (may be None for pure values).
+        problem: a short sentence saying what is wrong and, where possible, how to fix it.
+    """
+
+    def __init__(self, path: str | Path | None, problem: str):
+        self.path = None if path is None else Path(path)
+        self.problem = problem
+        super().__init__(f"{self.path}: {problem}" if self.path is not None else problem)

@@ -1,0 +1,67 @@
+"""Rigid transforms ``T_target_source`` (4x4, maps points in source to target).
+
+Rotation vectors are axis * angle in radians (OpenCV / scipy convention).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+
+def make_T(R: np.ndarray, t_m: np.ndarray) -> np.ndarray:
+    """4x4 transform from a 3x3 rotation and a translation in metres."""
+    T = np.eye(4)
+    T[:3, :3] = np.asarray(R, dtype=float)
+    T[:3, 3] = np.asarray(t_m, dtype=float).reshape(3)
+    return T
+
+
+def T_from_rotvec(rotvec_rad: np.ndarray, t_m: np.ndarray) -> np.ndarray:
+    """4x4 transform from a rotation vector (rad) and a translation (m)."""
+    return make_T(Rotation.from_rotvec(np.asarray(rotvec_rad, float).reshape(3)).as_matrix(), t_m)
+
+
+def rotvec_from_T(T: np.ndarray) -> np.ndarray:
+    """Rotation vector (rad) of the rotation part of T."""
+    return Rotation.from_matrix(np.asarray(T, float)[:3, :3]).as_rotvec()
+
+
+def invert_T(T_a_b: np.ndarray) -> np.ndarray:
+    """Return T_b_a for a rigid T_a_b."""
+    R = T_a_b[:3, :3]
+    t = T_a_b[:3, 3]
+    return make_T(R.T, -R.T @ t)
+
+
+def transform_points(T_a_b: np.ndarray, points_b: np.ndarray) -> np.ndarray:
+    """Map (N,3) points from frame b to frame a."""
+    P = np.asarray(points_b, dtype=float).reshape(-1, 3)
+    return P @ T_a_b[:3, :3].T + T_a_b[:3, 3]
+
+
+def rotation_angle_rad(R: np.ndarray) -> float:
+    """Angle (rad) of a rotation matrix, in [0, pi]."""
+    c = (np.trace(np.asarray(R, float)[:3, :3]) - 1.0) / 2.0
+    return float(np.arccos(np.clip(c, -1.0, 1.0)))
+
+
+def pose_error(T_est: np.ndarray, T_true: np.ndarray) -> tuple[float, float]:
+    """(rotation error in rad, translation error in m) between two T_a_b."""
+    dR = T_est[:3, :3] @ T_true[:3, :3].T
+    return rotation_angle_rad(dR), float(np.linalg.norm(T_est[:3, 3] - T_true[:3, 3]))
+
+
+def look_at_T_cam_world(eye_world_m, target_world_m, up_world=(0.0, 0.0, 1.0)) -> np.ndarray:
+    """T_cam_world for an OpenCV camera (z forward, y down) at eye looking at target."""
+    eye = np.asarray(eye_world_m, float)
+    z = np.asarray(target_world_m, float) - eye
+    z /= np.linalg.norm(z)
+    up = np.asarray(up_world, float)
+    x = np.cross(z, up)
+    if np.linalg.norm(x) < 1e-9:  # looking along up: pick any perpendicular
+        x = np.cross(z, [1.0, 0.0, 0.0])
+    x /= np.linalg.norm(x)
+    y = np.cross(z, x)
+    R_world_cam = np.column_stack([x, y, z])
+    return invert_T(make_T(R_world_cam, eye))

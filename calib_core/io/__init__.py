@@ -1,0 +1,1 @@
+"""File formats: point clouds, images, intrinsics, atomic writes."""

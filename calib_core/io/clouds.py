@@ -1,0 +1,240 @@
+"""Point cloud files: .ply .pcd (open3d), .xyz .csv .txt, .npy, .las .laz (laspy).
+
+Every loader returns a :class:`Cloud` with finite float64 points in metres, or
+raises :class:`SessionError` naming the file and the problem.
+"""
+
+from __future__ import annotations
+
+import io
+import re
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from calib_core.errors import SessionError
+
+CLOUD_SUFFIXES = (".ply", ".pcd", ".xyz", ".csv", ".txt", ".npy", ".las", ".laz")
+
+
+@dataclass(frozen=True)
+class Cloud:
+    """A sonar point cloud in the sonar frame.
+
+    Attributes:
+        points_m: (N,3) float64, metres, all finite.
+        intensity: (N,) float64 or None.
+    """
+
+    points_m: np.ndarray
+    intensity: np.ndarray | None = None
+
+    def __len__(self) -> int:
+        return len(self.points_m)
+
+
+def load_cloud(path: str | Path, allow_nonfinite: bool = False) -> Cloud:
+    """Load a point cloud; reject empty clouds and NaN/inf points (unless allowed: then dropped)."""
+    path = Path(path)
+    if not path.is_file():
+        raise SessionError(path, "point cloud file not found")
+    suffix = path.suffix.lower()
+    if suffix not in CLOUD_SUFFIXES:
+        raise SessionError(path, f"unknown point cloud format '{suffix}' (use one of {', '.join(CLOUD_SUFFIXES)})")
+    if path.stat().st_size == 0:
+        raise SessionError(path, "point cloud file is empty (0 bytes)")
+    try:
+        pts, inten = _READERS[suffix](path)
+    except SessionError:
+        raise
+    except Exception as e:  # corrupt or truncated file: name it, no traceback
+        raise SessionError(path, f"cannot read point cloud ({type(e).__name__}: {e})") from None
+    pts = np.asarray(pts, dtype=np.float64)
+    if pts.ndim != 2 or pts.shape[1] != 3:
+        raise SessionError(path, f"expected N x 3 points, got shape {pts.shape}")
+    if len(pts) == 0:
+        raise SessionError(path, "point cloud holds no points")
+    finite = np.isfinite(pts).all(axis=1)
+    if inten is not None:
+        inten = np.asarray(inten, dtype=np.float64).reshape(-1)
+        if len(inten) != len(pts):
+            inten = None
+    if not finite.all():
+        if not allow_nonfinite:
+            raise SessionError(path, f"{int((~finite).sum())} of {len(pts)} points are NaN or infinite")
+        pts = pts[finite]
+        inten = None if inten is None else inten[finite]
+        if len(pts) == 0:
+            raise SessionError(path, "point cloud holds no finite points")
+    return Cloud(pts, inten)
+
+
+def save_cloud(path: str | Path, cloud: Cloud) -> None:
+    """Write a cloud; the format follows the suffix (.ply binary, .pcd binary, .npy, .xyz, .las)."""
+    from calib_core.io.atomic import atomic_write_bytes
+
+    path = Path(path)
+    suffix = path.suffix.lower()
+    pts = np.asarray(cloud.points_m, dtype=np.float64)
+    inten = cloud.intensity
+    if suffix == ".npy":
+        arr = pts if inten is None else np.column_stack([pts, inten])
+        buf = io.BytesIO()
+        np.save(buf, arr)
+        atomic_write_bytes(path, buf.getvalue())
+    elif suffix in (".xyz", ".txt", ".csv"):
+        arr = pts if inten is None else np.column_stack([pts, inten])
+        sep = "," if suffix == ".csv" else " "
+        buf = io.StringIO()
+        np.savetxt(buf, arr, fmt="%.6f", delimiter=sep)
+        atomic_write_bytes(path, buf.getvalue().encode())
+    elif suffix == ".ply":
+        atomic_write_bytes(path, _ply_bytes(pts, inten))
+    elif suffix == ".pcd":
+        atomic_write_bytes(path, _pcd_bytes(pts, inten))
+    elif suffix in (".las", ".laz"):
+        import laspy
+
+        header = laspy.LasHeader(point_format=0, version="1.2")
+        header.scales = np.array([1e-4, 1e-4, 1e-4])
+        header.offsets = np.floor(pts.min(axis=0)) if len(pts) else np.zeros(3)
+        las = laspy.LasData(header)
+        las.x, las.y, las.z = pts[:, 0], pts[:, 1], pts[:, 2]
+        if inten is not None:
+            las.intensity = np.clip(inten, 0, 65535).astype(np.uint16)
+        buf = io.BytesIO()
+        las.write(buf, do_compress=suffix == ".laz")
+        atomic_write_bytes(path, buf.getvalue())
+    else:
+        raise SessionError(path, f"cannot write point cloud format '{suffix}'")
+
+
+# ---- writers (binary little-endian, float32 xyz like the sonar software writes) ----
+def _ply_bytes(pts: np.ndarray, inten: np.ndarray | None) -> bytes:
+    fields = [("x", "<f4"), ("y", "<f4"), ("z", "<f4")] + ([("intensity", "<f4")] if inten is not None else [])
+    rec = np.empty(len(pts), dtype=fields)
+    rec["x"], rec["y"], rec["z"] = pts[:, 0], pts[:, 1], pts[:, 2]
+    if inten is not None:
+        rec["intensity"] = inten
+    head = "ply\nformat binary_little_endian 1.0\n" f"element vertex {len(pts)}\n"
+    head += "".join(f"property float {n}\n" for n, _ in fields) + "end_header\n"
+    return head.encode() + rec.tobytes()
+
+
+def _pcd_bytes(pts: np.ndarray, inten: np.ndarray | None) -> bytes:
+    names = ["x", "y", "z"] + (["intensity"] if inten is not None else [])
+    arr = pts if inten is None else np.column_stack([pts, inten])
+    head = (
+        "# .PCD v0.7\nVERSION 0.7\n"
+        f"FIELDS {' '.join(names)}\nSIZE {' '.join('4' * len(names))}\n"
+        f"TYPE {' '.join('F' * len(names))}\nCOUNT {' '.join('1' * len(names))}\n"
+        f"WIDTH {len(arr)}\nHEIGHT 1\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS {len(arr)}\nDATA binary\n"
+    )
+    return head.encode() + arr.astype("<f4").tobytes()
+
+
+# ---- readers -------------------------------------------------------------
+def _read_open3d(path: Path):
+    """PLY/PCD through open3d's tensor API (keeps an intensity field)."""
+    import open3d as o3d
+
+    _check_header(path)
+    pcd = o3d.t.io.read_point_cloud(str(path))
+    if "positions" not in pcd.point:
+        raise SessionError(path, "file holds no points (or is not a point cloud)")
+    pts = pcd.point.positions.numpy()
+    inten = None
+    for key in ("intensity", "intensities", "scalar_intensity"):
+        if key in pcd.point:
+            inten = pcd.point[key].numpy().reshape(-1)
+            break
+    _check_count(path, len(pts))
+    return pts, inten
+
+
+def _check_header(path: Path) -> None:
+    """open3d prints warnings and returns an empty cloud for bad files: check first."""
+    with open(path, "rb") as f:
+        head = f.read(4096)
+    if path.suffix.lower() == ".ply":
+        if not head.startswith(b"ply"):
+            raise SessionError(path, "not a PLY file (it does not start with 'ply')")
+        if b"end_header" not in head:
+            raise SessionError(path, "PLY header is incomplete (no 'end_header')")
+    else:
+        if b"DATA" not in head or b"FIELDS" not in head:
+            raise SessionError(path, "not a PCD file (no FIELDS/DATA header)")
+
+
+def _check_count(path: Path, n_read: int) -> None:
+    """Detect truncation: compare the header's point count with what was read."""
+    with open(path, "rb") as f:
+        head = f.read(4096).decode("latin-1")
+    m = re.search(r"element vertex (\d+)", head) or re.search(r"\nPOINTS (\d+)", head)
+    if m and int(m.group(1)) != n_read:
+        raise SessionError(path, f"file is truncated or corrupt: header says {m.group(1)} points, read {n_read}")
+    if m and path.suffix.lower() == ".ply" and "binary" in head.split("end_header")[0]:
+        # open3d silently zero-fills a short binary PLY: check the byte count
+        header_len = head.index("end_header") + len("end_header\n")
+        sizes = {"float": 4, "float32": 4, "double": 8, "float64": 8, "uchar": 1, "uint8": 1, "char": 1,
+                 "int8": 1, "ushort": 2, "uint16": 2, "short": 2, "int16": 2, "uint": 4, "uint32": 4,
+                 "int": 4, "int32": 4}
+        vertex_block = head.split("element vertex")[1].split("element")[0]
+        props = re.findall(r"property (\w+) \w+", vertex_block)
+        if props and all(p in sizes for p in props) and "element" not in head.split("element vertex")[1].split("end_header")[0]:
+            need = header_len + int(m.group(1)) * sum(sizes[p] for p in props)
+            if path.stat().st_size < need:
+                raise SessionError(path, f"file is truncated: {path.stat().st_size} bytes, header needs {need}")
+
+
+def _read_text(path: Path):
+    text = path.read_text(encoding="utf-8", errors="strict")
+    rows = []
+    for lineno, line in enumerate(text.splitlines(), 1):
+        s = line.strip()
+        if not s or s.startswith("#"):
+            continue
+        parts = [p for p in re.split(r"[,\s;]+", s) if p]
+        try:
+            vals = [float(p) for p in parts]
+        except ValueError:
+            if not rows:  # a header row
+                continue
+            raise SessionError(path, f"line {lineno}: not a number row: {s[:60]!r}") from None
+        if len(vals) < 3:
+            raise SessionError(path, f"line {lineno}: expected x y z [intensity], got {len(vals)} values")
+        rows.append(vals[:4] if len(vals) >= 4 else vals[:3] + [np.nan])
+    if not rows:
+        raise SessionError(path, "point cloud holds no points")
+    arr = np.array(rows, dtype=np.float64)
+    inten = arr[:, 3] if np.isfinite(arr[:, 3]).all() else None
+    return arr[:, :3], inten
+
+
+def _read_npy(path: Path):
+    arr = np.load(path, allow_pickle=False)
+    if arr.ndim != 2 or arr.shape[1] not in (3, 4) or not np.issubdtype(arr.dtype, np.number):
+        raise SessionError(path, f"expected an (N,3) or (N,4) number array, got {arr.dtype} {arr.shape}")
+    return arr[:, :3], (arr[:, 3] if arr.shape[1] == 4 else None)
+
+
+def _read_las(path: Path):
+    import laspy
+
+    las = laspy.read(str(path))
+    pts = np.column_stack([np.asarray(las.x), np.asarray(las.y), np.asarray(las.z)])
+    inten = np.asarray(las.intensity, dtype=np.float64) if "intensity" in las.point_format.dimension_names else None
+    return pts, inten
+
+
+_READERS = {
+    ".ply": _read_open3d,
+    ".pcd": _read_open3d,
+    ".xyz": _read_text,
+    ".csv": _read_text,
+    ".txt": _read_text,
+    ".npy": _read_npy,
+    ".las": _read_las,
+    ".laz": _read_las,
+}

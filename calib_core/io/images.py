@@ -1,0 +1,106 @@
+"""Images and background videos (OpenCV). Images are returned as RGB uint8 (H,W,3)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from calib_core.errors import SessionError
+
+IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".webp")
+VIDEO_SUFFIXES = (".mp4", ".avi", ".mov", ".mkv", ".m4v")
+
+
+def load_image(path: str | Path) -> np.ndarray:
+    """Read an image file as RGB uint8 (H,W,3); greyscale is expanded to 3 channels."""
+    path = Path(path)
+    if not path.is_file():
+        raise SessionError(path, "image file not found")
+    if path.stat().st_size == 0:
+        raise SessionError(path, "image file is empty (0 bytes)")
+    data = np.fromfile(path, dtype=np.uint8)
+    img = cv2.imdecode(data, cv2.IMREAD_UNCHANGED)
+    if img is None:
+        raise SessionError(path, "cannot decode image (corrupt, truncated or not an image)")
+    if img.dtype == np.uint16:
+        img = (img / 257.0).round().astype(np.uint8)
+    if img.ndim == 2:
+        img = cv2.cvtColor(img, cv2.COLOR_GRAY2RGB)
+    elif img.shape[2] == 4:
+        img = cv2.cvtColor(img, cv2.COLOR_BGRA2RGB)
+    else:
+        img = cv2.cvtColor(img, cv2.COLOR_BGR2RGB)
+    return img
+
+
+def save_image(path: str | Path, image_rgb: np.ndarray, jpeg_quality: int = 92) -> None:
+    """Write an RGB uint8 image atomically; format from the suffix."""
+    from calib_core.io.atomic import atomic_write_bytes
+
+    path = Path(path)
+    img = np.asarray(image_rgb)
+    bgr = cv2.cvtColor(img, cv2.COLOR_RGB2BGR) if img.ndim == 3 else img
+    params = [cv2.IMWRITE_JPEG_QUALITY, jpeg_quality] if path.suffix.lower() in (".jpg", ".jpeg") else [cv2.IMWRITE_PNG_COMPRESSION, 6]
+    ok, buf = cv2.imencode(path.suffix.lower(), bgr, params)
+    if not ok:
+        raise SessionError(path, "cannot encode image")
+    atomic_write_bytes(path, buf.tobytes())
+
+
+def image_size(path: str | Path) -> tuple[int, int]:
+    """(width, height) of an image file (decodes it)."""
+    img = load_image(path)
+    return img.shape[1], img.shape[0]
+
+
+def list_frames(path: str | Path) -> list[Path]:
+    """Image files in a folder (sorted), or the file itself."""
+    path = Path(path)
+    if path.is_dir():
+        return sorted(p for p in path.iterdir() if p.suffix.lower() in IMAGE_SUFFIXES and p.is_file())
+    return [path]
+
+
+def load_video_frames(path: str | Path, start_s: float = 0.0, end_s: float | None = None,
+                      max_frames: int = 60) -> list[np.ndarray]:
+    """Decode up to ``max_frames`` RGB frames evenly spread over [start_s, end_s] of a video."""
+    path = Path(path)
+    if not path.is_file():
+        raise SessionError(path, "video file not found")
+    cap = cv2.VideoCapture(str(path))
+    try:
+        if not cap.isOpened():
+            raise SessionError(path, "cannot open video (corrupt or unsupported codec)")
+        fps = cap.get(cv2.CAP_PROP_FPS) or 25.0
+        n = int(cap.get(cv2.CAP_PROP_FRAME_COUNT) or 0)
+        first = int(max(0.0, start_s) * fps)
+        last = n - 1 if end_s is None else min(n - 1, int(end_s * fps))
+        if n <= 0 or last < first:
+            raise SessionError(path, f"video has no frames in the window {start_s}-{end_s} s")
+        idx = np.unique(np.linspace(first, last, min(max_frames, last - first + 1)).round().astype(int))
+        frames = []
+        for i in idx:
+            cap.set(cv2.CAP_PROP_POS_FRAMES, int(i))
+            ok, bgr = cap.read()
+            if ok:
+                frames.append(cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB))
+        if not frames:
+            raise SessionError(path, "no frame of the video could be decoded")
+        return frames
+    finally:
+        cap.release()
+
+
+def load_background_frames(path: str | Path, **video_window) -> list[np.ndarray]:
+    """Background frames from a folder of images, one image, or a video file."""
+    path = Path(path)
+    if path.is_dir():
+        files = list_frames(path)
+        if not files:
+            raise SessionError(path, "background folder holds no images")
+        return [load_image(f) for f in files]
+    if path.suffix.lower() in VIDEO_SUFFIXES:
+        return load_video_frames(path, **video_window)
+    return [load_image(path)]

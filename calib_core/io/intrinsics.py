@@ -1,0 +1,141 @@
+"""Intrinsics files: ROS camera_info YAML and OpenCV FileStorage YAML/XML."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import cv2
+import numpy as np
+import yaml
+
+from calib_core.camera import CameraModel
+from calib_core.errors import SessionError
+from calib_core.io.atomic import atomic_write_text
+
+
+def load_intrinsics(path: str | Path) -> CameraModel:
+    """Read a ROS camera_info YAML or an OpenCV FileStorage file into a CameraModel."""
+    path = Path(path)
+    if not path.is_file():
+        raise SessionError(path, "intrinsics file not found")
+    raw = path.read_bytes()
+    if not raw.strip():
+        raise SessionError(path, "intrinsics file is empty")
+    text = raw.decode("utf-8", errors="replace")
+    if text.lstrip().startswith("%YAML") or "opencv-matrix" in text or text.lstrip().startswith("<?xml"):
+        return _load_opencv_storage(path)
+    try:
+        data = yaml.safe_load(text)
+    except yaml.YAMLError as e:
+        raise SessionError(path, f"invalid YAML: {_yaml_where(e)}") from None
+    if not isinstance(data, dict):
+        raise SessionError(path, "expected a ROS camera_info mapping (image_width, camera_matrix, ...)")
+    return _from_ros(path, data)
+
+
+def _yaml_where(e: yaml.YAMLError) -> str:
+    mark = getattr(e, "problem_mark", None)
+    what = getattr(e, "problem", None) or str(e).splitlines()[0]
+    return f"{what} at line {mark.line + 1}, column {mark.column + 1}" if mark else what
+
+
+def _matrix(path: Path, data: dict, key: str, size: int | tuple[int, ...]) -> np.ndarray:
+    node = data.get(key)
+    if node is None:
+        raise SessionError(path, f"missing '{key}'")
+    vals = node.get("data") if isinstance(node, dict) else node
+    try:
+        arr = np.asarray(vals, dtype=float).ravel()
+    except (TypeError, ValueError):
+        raise SessionError(path, f"'{key}' must be a list of numbers") from None
+    sizes = (size,) if isinstance(size, int) else size
+    if arr.size not in sizes:
+        raise SessionError(path, f"'{key}' has {arr.size} values, expected {' or '.join(map(str, sizes))}")
+    if not np.isfinite(arr).all():
+        raise SessionError(path, f"'{key}' holds NaN or infinite values")
+    return arr
+
+
+def _check_K(path: Path, K: np.ndarray, w: int, h: int) -> None:
+    if K[0, 0] <= 0 or K[1, 1] <= 0:
+        raise SessionError(path, f"focal lengths must be positive (fx={K[0, 0]}, fy={K[1, 1]})")
+    if abs(K[2, 2] - 1) > 1e-9 or abs(K[1, 0]) > 1e-9 or abs(K[2, 0]) > 1e-9 or abs(K[2, 1]) > 1e-9:
+        raise SessionError(path, "camera_matrix must be [fx, s, cx, 0, fy, cy, 0, 0, 1]")
+    if w <= 0 or h <= 0:
+        raise SessionError(path, f"image size must be positive, got {w} x {h}")
+
+
+def _from_ros(path: Path, data: dict) -> CameraModel:
+    try:
+        w, h = int(data["image_width"]), int(data["image_height"])
+    except KeyError as e:
+        raise SessionError(path, f"missing '{e.args[0]}'") from None
+    except (TypeError, ValueError):
+        raise SessionError(path, "image_width and image_height must be whole numbers") from None
+    K = _matrix(path, data, "camera_matrix", 9).reshape(3, 3)
+    model = str(data.get("distortion_model", "plumb_bob"))
+    if model not in ("plumb_bob", "rational_polynomial") and model:
+        raise SessionError(path, f"distortion_model '{model}' is not supported (use plumb_bob)")
+    dist = _matrix(path, data, "distortion_coefficients", (4, 5, 8)) if "distortion_coefficients" in data else np.zeros(5)
+    if dist.size == 8:
+        if np.any(dist[5:] != 0):
+            raise SessionError(path, "rational_polynomial with k4..k6 != 0 is not supported (use plumb_bob)")
+        dist = dist[:5]
+    _check_K(path, K, w, h)
+    return CameraModel(w, h, K, dist, name=str(data.get("camera_name", path.stem)))
+
+
+def _load_opencv_storage(path: Path) -> CameraModel:
+    fs = cv2.FileStorage(str(path), cv2.FILE_STORAGE_READ)
+    try:
+        if not fs.isOpened():
+            raise SessionError(path, "cannot parse OpenCV FileStorage file")
+
+        def node(*names):
+            for n in names:
+                nd = fs.getNode(n)
+                if not nd.empty():
+                    return nd
+            return None
+
+        Kn = node("camera_matrix", "K", "cameraMatrix")
+        if Kn is None:
+            raise SessionError(path, "missing 'camera_matrix' (or K / cameraMatrix)")
+        K = Kn.mat()
+        if K is None or K.size != 9:
+            raise SessionError(path, "camera_matrix must be a 3x3 matrix")
+        K = K.reshape(3, 3).astype(float)
+        dn = node("distortion_coefficients", "D", "dist_coeffs", "distCoeffs")
+        dist = np.zeros(5) if dn is None else np.asarray(dn.mat(), float).ravel()
+        if dist.size not in (4, 5, 8):
+            raise SessionError(path, f"distortion has {dist.size} values, expected 4, 5 or 8")
+        wn, hn = node("image_width", "width"), node("image_height", "height")
+        if wn is None or hn is None:
+            raise SessionError(path, "missing image_width / image_height")
+        w, h = int(wn.real()), int(hn.real())
+    finally:
+        fs.release()
+    if not np.isfinite(K).all() or not np.isfinite(dist).all():
+        raise SessionError(path, "camera matrix or distortion holds NaN or infinite values")
+    _check_K(path, K, w, h)
+    return CameraModel(w, h, K, dist[:5], name=path.stem)
+
+
+def camera_info_dict(cam: CameraModel, name: str | None = None) -> dict:
+    """ROS camera_info dictionary (as written by ROS camera_calibration)."""
+    P = np.hstack([cam.K, np.zeros((3, 1))])
+    return {
+        "image_width": int(cam.width_px),
+        "image_height": int(cam.height_px),
+        "camera_name": name or cam.name or "camera",
+        "camera_matrix": {"rows": 3, "cols": 3, "data": [float(v) for v in cam.K.ravel()]},
+        "distortion_model": "plumb_bob",
+        "distortion_coefficients": {"rows": 1, "cols": 5, "data": [float(v) for v in cam.dist]},
+        "rectification_matrix": {"rows": 3, "cols": 3, "data": [float(v) for v in np.eye(3).ravel()]},
+        "projection_matrix": {"rows": 3, "cols": 4, "data": [float(v) for v in P.ravel()]},
+    }
+
+
+def save_intrinsics_ros(path: str | Path, cam: CameraModel, name: str | None = None) -> None:
+    """Write ROS camera_info YAML atomically."""
+    atomic_write_text(path, yaml.safe_dump(camera_info_dict(cam, name), sort_keys=False, default_flow_style=None))

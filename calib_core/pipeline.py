@@ -1,0 +1,239 @@
+"""Session-level flow: files -> detections -> correspondences (pure functions).
+
+The shells (CLI, workbench) call these so that they give the same numbers:
+- :func:`detect_session` runs the detectors on every capture whose entry is missing or
+  ``auto`` and merges the results (operator entries are never touched);
+- :func:`refit_image` / :func:`refit_sonar` turn an operator's click or pick into a
+  ``corrected`` entry (refit near the hint; the hint itself when the refit fails);
+- :func:`correspondences` builds the solver's input for one camera.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Callable
+
+import numpy as np
+
+from calib_core.camera import CameraModel
+from calib_core.detections import is_operator_entry, merge_auto, now_iso
+from calib_core.errors import SessionError
+from calib_core.session import Session
+
+Progress = Callable[[int, int, str], None]
+
+# Uncertainty assumed for entries that carry no covariance (e.g. hand-corrected ones).
+DEFAULT_SIGMA_IMAGE_PX = 1.0
+DEFAULT_SIGMA_SONAR_M = 0.005
+CLICK_SIGMA_IMAGE_PX = 2.0  # an operator's click without a successful refit
+PICK_SIGMA_SONAR_M = 0.02  # an operator's pick without a successful refit
+
+
+@dataclass
+class SessionData:
+    """Per-session caches a shell may keep between calls (intrinsics, background models)."""
+
+    session: Session
+    cameras: dict[str, CameraModel] = field(default_factory=dict)
+    backgrounds: dict[str, np.ndarray | None] = field(default_factory=dict)
+
+    def camera(self, cam: str) -> CameraModel:
+        if cam not in self.cameras:
+            self.cameras[cam] = self.session.camera_model(cam)
+        return self.cameras[cam]
+
+    def background(self, cam: str) -> np.ndarray | None:
+        """Background model of a camera (median of its frames), None when it has none."""
+        if cam not in self.backgrounds:
+            from calib_core.detect.image import background_model
+            from calib_core.io.images import load_background_frames
+
+            spec = self.session.cameras[cam]
+            if spec.background_path is None:
+                self.backgrounds[cam] = None
+            else:
+                start, end = spec.background_window_s
+                frames = load_background_frames(spec.background_path, start_s=start, end_s=end)
+                _check_image_size(spec.background_path, frames[0], self.camera(cam))
+                self.backgrounds[cam] = background_model(frames, how="median")
+        return self.backgrounds[cam]
+
+
+def _check_image_size(path, image, cam: CameraModel) -> None:
+    h, w = image.shape[:2]
+    if (w, h) != (cam.width_px, cam.height_px):
+        raise SessionError(path, f"image is {w} x {h} but its intrinsics say {cam.width_px} x {cam.height_px}")
+
+
+def _as_data(session_or_data) -> SessionData:
+    return session_or_data if isinstance(session_or_data, SessionData) else SessionData(session_or_data)
+
+
+def detect_image_entry(data: SessionData | Session, capture_id: str, cam: str,
+                       hint_uv_px=None, hint_radius_px=None) -> dict:
+    """Run the image detector on one capture's image; return a detections.yaml entry (auto)."""
+    from calib_core.detect.image import detect_sphere_in_image
+    from calib_core.io.images import load_image
+
+    data = _as_data(data)
+    path = data.session.capture(capture_id).image_paths[cam]
+    image = load_image(path)
+    model = data.camera(cam)
+    _check_image_size(path, image, model)
+    det = detect_sphere_in_image(image, model, data.session.sphere_radius_m, background=data.background(cam),
+                                 hint_uv_px=hint_uv_px, hint_radius_px=hint_radius_px)
+    return det.to_entry()
+
+
+def detect_sonar_entry(data: SessionData | Session, capture_id: str, seed_center_m=None) -> dict:
+    """Run the sonar detector on one capture's cloud; return a detections.yaml entry (auto)."""
+    from calib_core.detect.sonar import detect_sphere_in_cloud
+    from calib_core.io.clouds import load_cloud
+
+    data = _as_data(data)
+    s = data.session
+    cloud = load_cloud(s.capture(capture_id).cloud_path)
+    det = detect_sphere_in_cloud(cloud.points_m, s.sphere_radius_m, beam_width_deg=s.beam_width_deg,
+                                 seed_center_m=seed_center_m)
+    return det.to_entry()
+
+
+def pending(session: Session, detections: dict, captures=None, redetect_auto: bool = True) -> list[tuple[str, str]]:
+    """(capture_id, sensor) pairs that need automatic detection."""
+    out = []
+    for cap in session.captures:
+        if captures is not None and cap.id not in captures:
+            continue
+        for sensor in ["sonar", *cap.image_paths]:
+            e = detections.get(cap.id, {}).get(sensor)
+            if e is None or (not is_operator_entry(e) and redetect_auto):
+                out.append((cap.id, sensor))
+    return out
+
+
+def detect_session(session_or_data, detections: dict, progress: Progress | None = None,
+                   captures=None, redetect_auto: bool = True) -> dict:
+    """Detect every missing (and, by default, every ``auto``) entry; return merged detections.
+
+    Entries an operator set (accepted / corrected / rejected) are returned unchanged.
+    """
+    data = _as_data(session_or_data)
+    todo = pending(data.session, detections, captures, redetect_auto)
+    auto: dict = {}
+    for i, (cid, sensor) in enumerate(todo):
+        if progress:
+            progress(i, len(todo), f"{cid} {sensor}")
+        entry = detect_sonar_entry(data, cid) if sensor == "sonar" else detect_image_entry(data, cid, sensor)
+        entry["detected_at"] = now_iso()
+        auto.setdefault(cid, {})[sensor] = entry
+    if progress:
+        progress(len(todo), len(todo), "done")
+    return merge_auto(detections, auto)
+
+
+def refit_image(session_or_data, capture_id: str, cam: str, hint_uv_px, hint_radius_px=None) -> dict:
+    """An operator clicked the sphere centre at ``hint_uv_px`` (raw px): refit near it.
+
+    Returns a ``corrected`` entry: the refit when it succeeds near the click, else the click
+    itself with a larger uncertainty.
+    """
+    hint = np.asarray(hint_uv_px, float).reshape(2)
+    entry = detect_image_entry(session_or_data, capture_id, cam, hint_uv_px=hint, hint_radius_px=hint_radius_px)
+    tol = max(10.0, 0.5 * float(hint_radius_px or 0.0))
+    if "center" in entry and np.linalg.norm(np.asarray(entry["center"]) - hint) <= tol:
+        entry.update(status="corrected", hint_uv_px=[float(v) for v in hint], refit=True)
+        return entry
+    s2 = CLICK_SIGMA_IMAGE_PX**2
+    out = {"status": "corrected", "center": [float(v) for v in hint], "cov_px2": [s2, 0.0, 0.0, s2],
+           "method": "operator-click", "refit": False}
+    if hint_radius_px:
+        out["radius_px"] = float(hint_radius_px)
+    if entry.get("reason"):
+        out["refit_reason"] = entry["reason"]
+    return out
+
+
+def refit_sonar(session_or_data, capture_id: str, seed_center_m) -> dict:
+    """An operator picked/dragged the sphere centre to ``seed_center_m`` (sonar frame): refit near it."""
+    seed = np.asarray(seed_center_m, float).reshape(3)
+    data = _as_data(session_or_data)
+    entry = detect_sonar_entry(data, capture_id, seed_center_m=seed)
+    if "center" in entry and np.linalg.norm(np.asarray(entry["center"]) - seed) <= 2.0 * data.session.sphere_diameter_m:
+        entry.update(status="corrected", seed_center_m=[float(v) for v in seed], refit=True)
+        return entry
+    s2 = PICK_SIGMA_SONAR_M**2
+    out = {"status": "corrected", "center": [float(v) for v in seed], "method": "operator-pick", "refit": False,
+           "cov_m2": [s2, 0, 0, 0, s2, 0, 0, 0, s2]}
+    if entry.get("reason"):
+        out["refit_reason"] = entry["reason"]
+    return out
+
+
+@dataclass(frozen=True)
+class Correspondences:
+    """Sphere centres seen by the sonar and one camera, one row per usable capture.
+
+    Attributes:
+        capture_ids: capture ids, in manifest order.
+        uv_px: (N,2) raw pixel centres (perspective projection of the sphere centre).
+        cov_uv_px2: (N,2,2) their covariances (px^2).
+        X_sonar_m: (N,3) sphere centres in the sonar frame (m).
+        cov_X_m2: (N,3,3) their covariances (m^2).
+        statuses: (image status, sonar status) per row.
+        skipped: {capture_id: reason} for captures not used.
+    """
+
+    capture_ids: list[str]
+    uv_px: np.ndarray
+    cov_uv_px2: np.ndarray
+    X_sonar_m: np.ndarray
+    cov_X_m2: np.ndarray
+    statuses: list[tuple[str, str]]
+    skipped: dict[str, str]
+
+    def __len__(self) -> int:
+        return len(self.capture_ids)
+
+
+def _cov(entry: dict, key: str, dim: int, sigma: float) -> np.ndarray:
+    c = entry.get(key)
+    if c is not None:
+        C = np.asarray(c, float).reshape(dim, dim)
+        if np.isfinite(C).all() and np.all(np.linalg.eigvalsh(0.5 * (C + C.T)) > 0):
+            return 0.5 * (C + C.T)
+    return np.eye(dim) * sigma**2
+
+
+def correspondences(session: Session, detections: dict, cam: str) -> Correspondences:
+    """Pair each capture's sonar centre with camera ``cam``'s image centre.
+
+    Rejected entries and entries without a centre are skipped (with the reason in ``skipped``).
+    """
+    if cam not in session.cameras:
+        raise SessionError(session.manifest_path, f"no camera '{cam}'")
+    ids, uv, cuv, X, cX, st, skipped = [], [], [], [], [], [], {}
+    for cap in session.captures:
+        if cam not in cap.image_paths:
+            continue
+        d = detections.get(cap.id, {})
+        img, son = d.get(cam), d.get("sonar")
+        why = None
+        for name, e in (("image", img), ("sonar", son)):
+            if why is None:
+                if e is None:
+                    why = f"no {name} detection"
+                elif e.get("status") == "rejected":
+                    why = f"{name} rejected"
+                elif e.get("center") is None:
+                    why = f"{name}: {e.get('reason') or 'not found'}"
+        if why:
+            skipped[cap.id] = why
+            continue
+        ids.append(cap.id)
+        uv.append(img["center"])
+        cuv.append(_cov(img, "cov_px2", 2, DEFAULT_SIGMA_IMAGE_PX))
+        X.append(son["center"])
+        cX.append(_cov(son, "cov_m2", 3, DEFAULT_SIGMA_SONAR_M))
+        st.append((img["status"], son["status"]))
+    return Correspondences(ids, np.asarray(uv, float).reshape(-1, 2), np.asarray(cuv, float).reshape(-1, 2, 2),
+                           np.asarray(X, float).reshape(-1, 3), np.asarray(cX, float).reshape(-1, 3, 3), st, skipped)

@@ -1,0 +1,42 @@
+"""``results/calibration.json`` (format sonar-camera-calibration/1): read and write."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+from calib_core.errors import SessionError
+from calib_core.io.atomic import atomic_write_json
+
+CALIBRATION_FORMAT = "sonar-camera-calibration/1"
+
+
+def calibration_path(session) -> Path:
+    return Path(session.root) / "results" / "calibration.json"
+
+
+def save_calibration(path: str | Path, result: dict) -> None:
+    """Write a calibration result dict atomically (must carry the contract's keys)."""
+    if result.get("format") != CALIBRATION_FORMAT or "cameras" not in result:
+        raise ValueError("calibration result lacks the contract keys 'format' and 'cameras'")
+    atomic_write_json(path, result)
+
+
+def load_calibration(path: str | Path) -> dict:
+    """Read a calibration.json, with clear errors for missing/corrupt files."""
+    path = Path(path)
+    if not path.is_file():
+        raise SessionError(path, "calibration file not found (run 'sonarcal calibrate' first)")
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except (UnicodeDecodeError, json.JSONDecodeError) as e:
+        raise SessionError(path, f"invalid JSON ({e})") from None
+    if not isinstance(data, dict) or data.get("format") != CALIBRATION_FORMAT or not isinstance(data.get("cameras"), dict):
+        raise SessionError(path, f"not a {CALIBRATION_FORMAT} file")
+    import numpy as np
+
+    for cam, c in data["cameras"].items():
+        T = np.asarray(c.get("T_cam_sonar"), dtype=float) if isinstance(c, dict) else None
+        if T is None or T.shape != (4, 4) or not np.isfinite(T).all():
+            raise SessionError(path, f"cameras.{cam}.T_cam_sonar must be a finite 4x4 matrix")
+    return data

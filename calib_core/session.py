@@ -1,0 +1,314 @@
+"""Session manifest (``session.yaml``, format sonar-camera-session/1): load and validate.
+
+:func:`load_session` parses the manifest and raises :class:`SessionError` on the first
+structural problem. :func:`validate_session` additionally opens every file the manifest
+names and returns *every* problem found (for ``sonarcal info``).
+
+Extensions to the contract (all optional):
+- ``sonar.beam_width_deg``: beam cone width (default 1.0, BlueView BV5000).
+- ``stereo``: ``{T_cam2_cam1: 4x4}`` stereo transforms between cameras (e.g. from
+  ``sonarcal stereo``), keys ``T_<target>_<source>``.
+- per camera ``background_window: [start_s, end_s]`` for a background video.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import yaml
+
+from calib_core.camera import CameraModel
+from calib_core.errors import SessionError
+
+SESSION_FORMAT = "sonar-camera-session/1"
+MANIFEST = "session.yaml"
+
+
+@dataclass(frozen=True)
+class CameraSpec:
+    """One camera of the rig. Paths are absolute, inside the session folder."""
+
+    name: str
+    intrinsics_path: Path
+    background_path: Path | None = None
+    background_window_s: tuple[float, float | None] = (0.0, None)
+
+
+@dataclass(frozen=True)
+class Capture:
+    """One sonar scan with the target held still, plus an image per camera."""
+
+    id: str
+    cloud_path: Path
+    image_paths: dict[str, Path] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class Session:
+    """A parsed session manifest. ``root`` is the absolute session folder."""
+
+    root: Path
+    name: str
+    sphere_diameter_m: float
+    cameras: dict[str, CameraSpec]
+    captures: list[Capture]
+    sonar_model: str = ""
+    sound_speed_m_s: float | None = None
+    beam_width_deg: float = 1.0
+    measured_m: dict[str, float] = field(default_factory=dict)
+    stereo: dict[str, np.ndarray] = field(default_factory=dict)
+    raw: dict = field(default_factory=dict, repr=False)
+
+    @property
+    def manifest_path(self) -> Path:
+        return self.root / MANIFEST
+
+    @property
+    def sphere_radius_m(self) -> float:
+        return self.sphere_diameter_m / 2.0
+
+    def capture(self, capture_id: str) -> Capture:
+        for c in self.captures:
+            if c.id == capture_id:
+                return c
+        raise SessionError(self.manifest_path, f"no capture '{capture_id}'")
+
+    def camera_model(self, cam: str) -> CameraModel:
+        """Load the intrinsics of camera ``cam`` (reads the file each call; cache in the shell)."""
+        from calib_core.io.intrinsics import load_intrinsics
+
+        return load_intrinsics(self.cameras[cam].intrinsics_path)
+
+
+def resolve_inside(root: Path, rel, manifest: Path, what: str) -> Path:
+    """Resolve a manifest path relative to the session and refuse anything outside it.
+
+    Absolute paths, ``..`` escapes and symlinks pointing out of the folder are refused.
+    """
+    if not isinstance(rel, str) or not rel.strip():
+        raise SessionError(manifest, f"{what}: expected a relative path, got {rel!r}")
+    if "\x00" in rel:
+        raise SessionError(manifest, f"{what}: path holds a NUL character")
+    p = Path(rel)
+    if p.is_absolute() or (len(rel) > 1 and rel[1] == ":"):
+        raise SessionError(manifest, f"{what}: absolute path '{rel}' is not allowed; paths are relative to the session folder")
+    root_r = root.resolve()
+    full = (root / p).resolve()
+    if full != root_r and root_r not in full.parents:
+        raise SessionError(manifest, f"{what}: path '{rel}' leaves the session folder")
+    return full
+
+
+def _num(manifest, value, what, positive=True):
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise SessionError(manifest, f"{what} must be a number, got {value!r}")
+    v = float(value)
+    if not math.isfinite(v) or (positive and v <= 0):
+        raise SessionError(manifest, f"{what} must be a positive finite number, got {value!r}")
+    return v
+
+
+def read_yaml_mapping(path: Path, what: str = "file") -> dict:
+    """Read a YAML file that must hold a mapping; clear errors for missing/invalid files."""
+    if not path.is_file():
+        raise SessionError(path, f"{what} not found")
+    try:
+        text = path.read_text(encoding="utf-8")
+    except UnicodeDecodeError:
+        raise SessionError(path, "not a text file (invalid UTF-8)") from None
+    try:
+        data = yaml.safe_load(text)
+    except yaml.YAMLError as e:
+        mark = getattr(e, "problem_mark", None)
+        where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark else ""
+        raise SessionError(path, f"invalid YAML{where}: {getattr(e, 'problem', None) or e}") from None
+    if not isinstance(data, dict):
+        raise SessionError(path, f"expected a YAML mapping at the top level, got {type(data).__name__}")
+    return data
+
+
+def load_session(folder: str | Path) -> Session:
+    """Parse and structurally validate ``folder/session.yaml``."""
+    root = Path(folder)
+    if not root.exists():
+        raise SessionError(root, "session folder not found")
+    if root.is_file() and root.name == MANIFEST:
+        root = root.parent
+    if not root.is_dir():
+        raise SessionError(root, "not a folder (give the session folder that holds session.yaml)")
+    root = root.resolve()
+    manifest = root / MANIFEST
+    data = read_yaml_mapping(manifest, "session manifest (session.yaml)")
+
+    fmt = data.get("format")
+    if fmt is not None and (not isinstance(fmt, str) or not fmt.startswith("sonar-camera-session/")):
+        raise SessionError(manifest, f"format '{fmt}' is not a sonar-camera-session format")
+    if isinstance(fmt, str) and fmt != SESSION_FORMAT:
+        raise SessionError(manifest, f"format '{fmt}' is newer than this tool understands ({SESSION_FORMAT})")
+
+    sphere = data.get("sphere")
+    if not isinstance(sphere, dict) or "diameter" not in sphere:
+        raise SessionError(manifest, "missing 'sphere: {diameter: METRES}'")
+    diameter = _num(manifest, sphere["diameter"], "sphere.diameter")
+    if diameter > 5.0:
+        raise SessionError(manifest, f"sphere.diameter {diameter} m is implausible (metres expected, e.g. 0.22)")
+
+    sonar = data.get("sonar") or {}
+    if not isinstance(sonar, dict):
+        raise SessionError(manifest, "'sonar' must be a mapping")
+    sound_speed = _num(manifest, sonar["sound_speed"], "sonar.sound_speed") if sonar.get("sound_speed") is not None else None
+    if sound_speed is not None and not 1300 <= sound_speed <= 1700:
+        raise SessionError(manifest, f"sonar.sound_speed {sound_speed} m/s is outside water's 1300-1700 m/s")
+    beam = _num(manifest, sonar.get("beam_width_deg", 1.0), "sonar.beam_width_deg")
+    if beam > 20:
+        raise SessionError(manifest, f"sonar.beam_width_deg {beam} is implausible (degrees, e.g. 1.0)")
+
+    cams_raw = data.get("cameras")
+    if not isinstance(cams_raw, dict) or not cams_raw:
+        raise SessionError(manifest, "missing 'cameras' (a mapping of camera name to {intrinsics: ...})")
+    cameras: dict[str, CameraSpec] = {}
+    for name, spec in cams_raw.items():
+        name = str(name)
+        if name == "sonar":
+            raise SessionError(manifest, "a camera may not be called 'sonar'")
+        if not isinstance(spec, dict) or "intrinsics" not in spec:
+            raise SessionError(manifest, f"cameras.{name}: missing 'intrinsics: PATH'")
+        intr = resolve_inside(root, spec["intrinsics"], manifest, f"cameras.{name}.intrinsics")
+        bg = spec.get("background")
+        bgp = resolve_inside(root, bg, manifest, f"cameras.{name}.background") if bg is not None else None
+        win = spec.get("background_window", [0.0, None])
+        if not isinstance(win, list) or len(win) != 2:
+            raise SessionError(manifest, f"cameras.{name}.background_window must be [start_s, end_s]")
+        start = _num(manifest, win[0], f"cameras.{name}.background_window", positive=False)
+        end = None if win[1] is None else _num(manifest, win[1], f"cameras.{name}.background_window", positive=False)
+        cameras[name] = CameraSpec(name, intr, bgp, (start, end))
+
+    caps_raw = data.get("captures")
+    if not isinstance(caps_raw, list) or not caps_raw:
+        raise SessionError(manifest, "missing 'captures' (a list of {id, cloud, images})")
+    captures: list[Capture] = []
+    seen = set()
+    for i, c in enumerate(caps_raw):
+        if not isinstance(c, dict):
+            raise SessionError(manifest, f"captures[{i}] must be a mapping with id, cloud, images")
+        cid = c.get("id")
+        if cid is None or (not isinstance(cid, (str, int))) or str(cid).strip() == "":
+            raise SessionError(manifest, f"captures[{i}]: missing 'id'")
+        cid = str(cid)
+        if cid in seen:
+            raise SessionError(manifest, f"captures[{i}]: duplicate id '{cid}'")
+        seen.add(cid)
+        if "cloud" not in c:
+            raise SessionError(manifest, f"capture {cid}: missing 'cloud'")
+        cloud = resolve_inside(root, c["cloud"], manifest, f"capture {cid} cloud")
+        imgs_raw = c.get("images") or {}
+        if not isinstance(imgs_raw, dict):
+            raise SessionError(manifest, f"capture {cid}: 'images' must map camera names to paths")
+        imgs = {}
+        for cam, rel in imgs_raw.items():
+            if str(cam) not in cameras:
+                raise SessionError(manifest, f"capture {cid}: image for unknown camera '{cam}' (cameras: {', '.join(cameras)})")
+            imgs[str(cam)] = resolve_inside(root, rel, manifest, f"capture {cid} image {cam}")
+        captures.append(Capture(cid, cloud, imgs))
+
+    measured = {}
+    for k, v in (data.get("measured") or {}).items():
+        measured[str(k)] = _num(manifest, v, f"measured.{k}")
+    stereo = {}
+    for k, v in (data.get("stereo") or {}).items():
+        stereo[str(k)] = parse_transform(manifest, v, f"stereo.{k}")
+
+    return Session(
+        root=root,
+        name=str(data.get("name") or root.name),
+        sphere_diameter_m=diameter,
+        cameras=cameras,
+        captures=captures,
+        sonar_model=str(sonar.get("model") or ""),
+        sound_speed_m_s=sound_speed,
+        beam_width_deg=beam,
+        measured_m=measured,
+        stereo=stereo,
+        raw=data,
+    )
+
+
+def parse_transform(path: Path, value, what: str) -> np.ndarray:
+    """Validate a 4x4 rigid transform given as nested lists."""
+    try:
+        T = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        raise SessionError(path, f"{what} must be a 4x4 matrix of numbers") from None
+    if T.shape != (4, 4) or not np.isfinite(T).all():
+        raise SessionError(path, f"{what} must be a finite 4x4 matrix, got shape {T.shape}")
+    R = T[:3, :3]
+    if not np.allclose(R @ R.T, np.eye(3), atol=1e-5) or np.linalg.det(R) < 0 or not np.allclose(T[3], [0, 0, 0, 1]):
+        raise SessionError(path, f"{what} is not a rigid transform (rotation not orthonormal or last row not 0 0 0 1)")
+    return T
+
+
+@dataclass
+class SessionCheck:
+    """What :func:`validate_session` found: the session (None if the manifest is unusable),
+    every problem, the camera models that loaded and each capture's cloud point count."""
+
+    session: Session | None
+    problems: list[SessionError]
+    cameras: dict[str, CameraModel] = field(default_factory=dict)
+    cloud_points: dict[str, int] = field(default_factory=dict)
+
+
+def validate_session(folder: str | Path) -> SessionCheck:
+    """Open every file the manifest names; return the session and every problem found."""
+    from calib_core.io.clouds import load_cloud
+    from calib_core.io.images import load_background_frames, load_image
+    from calib_core.io.intrinsics import load_intrinsics
+
+    try:
+        session = load_session(folder)
+    except SessionError as e:
+        return SessionCheck(None, [e])
+    problems: list[SessionError] = []
+    models: dict[str, CameraModel] = {}
+    points: dict[str, int] = {}
+    for name, spec in session.cameras.items():
+        try:
+            models[name] = load_intrinsics(spec.intrinsics_path)
+        except SessionError as e:
+            problems.append(e)
+        if spec.background_path is not None:
+            try:
+                start, end = spec.background_window_s
+                frames = load_background_frames(spec.background_path, start_s=start, end_s=end)
+                if name in models:
+                    _check_size(spec.background_path, frames[0], models[name], problems)
+            except SessionError as e:
+                problems.append(e)
+    for cap in session.captures:
+        try:
+            points[cap.id] = len(load_cloud(cap.cloud_path))
+        except SessionError as e:
+            problems.append(e)
+        for cam, p in cap.image_paths.items():
+            try:
+                img = load_image(p)
+                if cam in models:
+                    _check_size(p, img, models[cam], problems)
+            except SessionError as e:
+                problems.append(e)
+    from calib_core.detections import load_detections
+
+    try:
+        load_detections(session)
+    except SessionError as e:
+        problems.append(e)
+    return SessionCheck(session, problems, models, points)
+
+
+def _check_size(path: Path, img, cam: CameraModel, problems: list) -> None:
+    h, w = img.shape[:2]
+    if (w, h) != (cam.width_px, cam.height_px):
+        problems.append(SessionError(path, f"image is {w} x {h} but its intrinsics say {cam.width_px} x {cam.height_px}"))

@@ -1,0 +1,60 @@
+"""``sonarcal detect SESSION``: find the sphere in every image and cloud, write detections.yaml."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from calib_core.detections import load_detections, save_detections
+from calib_core.pipeline import SessionData, detect_session
+from calib_core.session import load_session
+from sonarcal_cli.ui import console, err_console, progress_bar, table
+
+
+def add_parser(sub) -> None:
+    p = sub.add_parser("detect", help="detect the sphere in every image and cloud; write detections.yaml")
+    p.add_argument("session", help="session folder (holds session.yaml)")
+    p.add_argument("--capture", action="append", metavar="ID", help="only this capture (repeatable)")
+    p.add_argument("--missing-only", action="store_true", help="keep existing auto entries; detect only missing ones")
+    p.set_defaults(run=run)
+
+
+def _fmt_center(e: dict) -> str:
+    c = e.get("center")
+    if c is None:
+        return "-"
+    return "(" + ", ".join(f"{v:.4f}" if len(c) == 3 else f"{v:.1f}" for v in c) + (") m" if len(c) == 3 else ") px")
+
+
+def run(args) -> int:
+    session = load_session(args.session)
+    existing = load_detections(session)
+    if args.capture:
+        unknown = set(args.capture) - {c.id for c in session.captures}
+        if unknown:
+            err_console.print(f"error: {session.manifest_path}: no capture {', '.join(sorted(unknown))}", markup=False)
+            return 2
+    with progress_bar("detecting") as cb:
+        dets = detect_session(SessionData(session), existing, progress=cb, captures=args.capture,
+                              redetect_auto=not args.missing_only)
+    save_detections(session, dets)
+    rows, missing = [], 0
+    for cap in session.captures:
+        for sensor in ["sonar", *cap.image_paths]:
+            e = dets.get(cap.id, {}).get(sensor)
+            if e is None:
+                continue
+            if e.get("center") is None and e.get("status") != "rejected":
+                missing += 1
+            seen = e.get("diameter_m") or e.get("apparent_diameter_m")
+            rows.append([cap.id, sensor, e.get("status", ""), _fmt_center(e), f"{e.get('score', 0):.2f}",
+                         f"{seen * 1000:.0f} mm" if seen else "-", e.get("reason", "")])
+    console.print(table(f"Detections ({session.name})", ["capture", "sensor", "status", "centre", "score",
+                                                         "diameter seen", "reason"], rows))
+    diams = [e["diameter_m"] for c in dets.values() for s, e in c.items() if s == "sonar" and e.get("diameter_m")]
+    if len(diams) >= 3:
+        med = float(np.median(diams))
+        if abs(med / session.sphere_diameter_m - 1) > 0.1:
+            err_console.print(f"warning: the sonar sees a {med * 1000:.0f} mm sphere but session.yaml says "
+                              f"{session.sphere_diameter_m * 1000:.0f} mm: check sphere.diameter", markup=False)
+    console.print(f"wrote {session.root / 'detections.yaml'}; {missing} detection(s) not found")
+    return 0

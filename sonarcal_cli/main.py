@@ -1,0 +1,59 @@
+"""Entry point: ``sonarcal COMMAND ...``.
+
+Every command module exposes ``add_parser(subparsers)`` which registers its parser
+with ``set_defaults(run=function)``; ``run(args) -> int`` returns the exit status.
+User-fixable problems (:class:`SessionError`) become one line on stderr and exit 2.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import os
+import sys
+import traceback
+
+from calib_core import __version__
+from calib_core.errors import SessionError
+
+COMMANDS = ["info", "synth", "detect", "calibrate", "checkerboard", "serve", "export", "report"]
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="sonarcal", description="Camera to 3D imaging sonar calibration.")
+    p.add_argument("--version", action="version", version=f"sonarcal {__version__}")
+    sub = p.add_subparsers(dest="command", metavar="COMMAND")
+    for name in COMMANDS:
+        importlib.import_module(f"sonarcal_cli.cmd_{name}").add_parser(sub)
+    return p
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    try:
+        args = parser.parse_args(argv)
+    except SystemExit as e:  # argparse already printed a usage message
+        return int(e.code or 0) if e.code in (0, None) else 2
+    if not getattr(args, "run", None):
+        parser.print_help()
+        return 2
+    try:
+        return int(args.run(args) or 0)
+    except SessionError as e:
+        print(f"error: {e}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("interrupted", file=sys.stderr)
+        return 130
+    except MemoryError:
+        print("error: out of memory (the input is too large for this machine)", file=sys.stderr)
+        return 2
+    except Exception as e:  # a bug: say so in one line; full trace only on request
+        if os.environ.get("SONARCAL_DEBUG"):
+            traceback.print_exc()
+        print(f"internal error: {type(e).__name__}: {e} (set SONARCAL_DEBUG=1 for details; please report)", file=sys.stderr)
+        return 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())
