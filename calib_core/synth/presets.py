@@ -1,0 +1,90 @@
+"""Synthetic session presets: what kind of scene, rig and sensor set-up each one makes.
+
+A :class:`Preset` is declarative; :func:`calib_core.synth.generate.generate_session` turns
+it plus a seed into a session. Everything random (intrinsics, rig, sphere positions,
+turbidity, noise) comes from the seed; the preset fixes the kind of scene.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+
+@dataclass(frozen=True)
+class Preset:
+    """Scene kind and sensor settings of a synthetic session.
+
+    n_cameras: 1 or 2 (2 = the paper's stereo rig, cameras cam1 and cam2).
+    n_captures: target captures (the sphere held still during a scan).
+    n_flange: extra non-target captures (steel pipe with a square flange, sphere absent).
+    pan_step_deg, sub_rays: sonar pan step and sub-rays per 1 deg beam cone.
+    range_scale: reported range = true range * range_scale (sound-speed error).
+    moved: one capture's target moves 10-20 cm between the scan and the images.
+    scene: "canal" (open water, chain, pontoons), "seabed" (seabed, wall/dock, stand, clutter).
+    bright: bright sphere on dark water (instead of a dark mesh on bright backlit water).
+    n_backgrounds: sphere-free frames per camera (0 = no background in session.yaml).
+    decoys: other round things (spheres and discs of other sizes) in image and cloud.
+    diameter_factor: session.yaml states the diameter times this (wrong-diameter test).
+    cloud_format: suffix of the cloud files (".ply", ".pcd", ".npy", ".xyz").
+    scale: image resolution factor (1.0 = 1920x1080); K scales with it.
+    corner_fraction: share of captures aimed near an image corner.
+    """
+
+    name: str
+    description: str
+    n_cameras: int = 1
+    n_captures: int = 9
+    n_flange: int = 0
+    pan_step_deg: float = 0.5
+    pan_span_deg: float = 90.0
+    sub_rays: int = 19
+    range_scale: float = 1.0
+    moved: bool = False
+    scene: str = "canal"
+    bright: bool = False
+    n_backgrounds: int = 3
+    decoys: bool = False
+    diameter_factor: float = 1.0
+    cloud_format: str = ".ply"
+    scale: float = 1.0
+    corner_fraction: float = 0.3
+    jpeg_quality: int = 90
+
+    def with_(self, **changes) -> "Preset":
+        """A copy with some fields changed (e.g. ``scale=0.25`` for fast tests)."""
+        return replace(self, **changes)
+
+
+_LIST = [
+    Preset("canal", "the paper's rig: two cameras 0.74 m apart, sonar ~0.86 m from each, 9 captures in a "
+           "~3 m work area, chain and pontoons, measured baselines and a checkerboard stereo transform",
+           n_cameras=2, n_captures=9, pan_step_deg=0.5),
+    Preset("quick", "one camera, 6 captures, coarse pan steps: fast", n_captures=6, pan_step_deg=1.0,
+           sub_rays=19, cloud_format=".pcd", n_backgrounds=2),
+    Preset("moved", "one capture's target moved 10-20 cm between the scan and the image", n_captures=8,
+           pan_step_deg=0.75, moved=True),
+    Preset("soundspeed", "sound-speed error: cloud ranges scaled by 1.02", n_captures=8, pan_step_deg=0.75,
+           range_scale=1.02),
+    Preset("flange", "target captures plus non-target captures of a steel pipe with a square flange "
+           "(paper Fig. 5)", n_captures=7, n_flange=2, pan_step_deg=0.5),
+    Preset("seabed", "seabed, a wall or dock, the sphere on a stand instead of a chain, clutter",
+           n_captures=8, pan_step_deg=0.75, scene="seabed", cloud_format=".npy"),
+    Preset("bright", "bright sphere on dark water", n_captures=8, pan_step_deg=0.75, bright=True),
+    Preset("nobg", "no background frames", n_captures=8, pan_step_deg=0.75, n_backgrounds=0),
+    Preset("decoys", "other round things (spheres, discs of other sizes) in image and cloud", n_captures=8,
+           pan_step_deg=0.75, decoys=True, cloud_format=".xyz"),
+    Preset("wrongdiam", "session.yaml states a sphere diameter ~30 % off the true one", n_captures=8,
+           pan_step_deg=0.75, diameter_factor=1.3),
+]
+
+PRESETS: dict[str, Preset] = {p.name: p for p in _LIST}
+
+
+def get_preset(name_or_preset) -> Preset:
+    """Look a preset up by name (KeyError listing the names if unknown), or pass one through."""
+    if isinstance(name_or_preset, Preset):
+        return name_or_preset
+    try:
+        return PRESETS[str(name_or_preset)]
+    except KeyError:
+        raise KeyError(f"unknown preset '{name_or_preset}' (presets: {', '.join(PRESETS)})") from None

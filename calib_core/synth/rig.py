@@ -1,0 +1,182 @@
+"""Random intrinsics, rig geometry and sphere placements for synthetic sessions.
+
+World frame: metres, z up, the sonar at the origin looking roughly along +x.
+Sonar frame: x forward, y left, z up (see :mod:`calib_core.synth.sonar_sim`).
+Camera frames: OpenCV (x right, y down, z forward).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from calib_core.camera import CameraModel
+from calib_core.geometry import invert_T, look_at_T_cam_world, make_T, transform_points
+from calib_core.synth.camera_render import camera_rays
+
+
+@dataclass
+class Rig:
+    """Sensors of a synthetic session. ``cams[name] = (CameraModel, T_world_cam)``."""
+
+    T_world_sonar: np.ndarray
+    cams: dict = field(default_factory=dict)
+
+    def T_cam_world(self, name: str) -> np.ndarray:
+        return invert_T(self.cams[name][1])
+
+    def T_cam_sonar(self, name: str) -> np.ndarray:
+        return self.T_cam_world(name) @ self.T_world_sonar
+
+
+def sample_intrinsics(rng: np.random.Generator, width_px: int, height_px: int, name: str,
+                      scale: float = 1.0) -> CameraModel:
+    """Random but realistic pinhole + plumb_bob intrinsics (f 900-1800 px at 1920 wide).
+
+    Mixes mild, strong barrel and pincushion lenses; rejects any whose distortion folds
+    back (is not invertible) inside the image, as a real calibration would never give.
+    """
+    for _ in range(500):
+        f = rng.uniform(900, 1800) * scale
+        fy = f * (1 + rng.normal(0, 0.002))
+        cx = width_px / 2 + rng.normal(0, 0.015 * width_px)
+        cy = height_px / 2 + rng.normal(0, 0.015 * height_px)
+        style = rng.choice(3, p=[0.45, 0.4, 0.15])
+        if style == 0:  # mild
+            k = [rng.uniform(-0.15, 0.05), rng.uniform(-0.05, 0.15), rng.uniform(-0.02, 0.02)]
+        elif style == 1:  # strong barrel
+            k = [rng.uniform(-0.45, -0.2), rng.uniform(0.05, 0.3), rng.uniform(-0.05, 0.05)]
+        else:  # pincushion (flat port)
+            k = [rng.uniform(0.02, 0.15), rng.uniform(-0.05, 0.05), 0.0]
+        p1, p2 = rng.normal(0, 0.0008, 2)
+        K = np.array([[f, 0, cx], [0, fy, cy], [0, 0, 1.0]])
+        cam = CameraModel(width_px, height_px, K, np.array([k[0], k[1], p1, p2, k[2]]), name=name)
+        if _lens_ok(cam):
+            return cam
+    raise RuntimeError("could not sample invertible intrinsics")  # practically unreachable
+
+
+def _lens_ok(cam: CameraModel) -> bool:
+    """Distortion invertible over the image (with 15 % radius to spare) and round-trip exact."""
+    W, H = cam.width_px, cam.height_px
+    border = np.array([[-0.5, -0.5], [W - 0.5, -0.5], [-0.5, H - 0.5], [W - 0.5, H - 0.5],
+                       [W / 2, -0.5], [-0.5, H / 2], [W - 0.5, H / 2], [W / 2, H - 0.5]])
+    xy = cam.normalize(border)
+    if not np.isfinite(xy).all() or np.abs(cam.distort(xy) - border).max() > 1e-6:
+        return False
+    rmax = 1.15 * np.linalg.norm(xy, axis=1).max()
+    r = np.linspace(0, rmax, 400)
+    k1, k2, _, _, k3 = cam.dist
+    g = 1 + 3 * k1 * r**2 + 5 * k2 * r**4 + 7 * k3 * r**6  # d/dr of r*(1+k1 r^2+...)
+    return bool(g.min() > 0.25)
+
+
+def _rot(yaw_deg, pitch_deg, roll_deg) -> np.ndarray:
+    return Rotation.from_euler("ZYX", [yaw_deg, pitch_deg, roll_deg], degrees=True).as_matrix()
+
+
+def _camera_pose(rng, eye, target, roll_sigma_deg=2.0) -> np.ndarray:
+    """T_world_cam of an OpenCV camera at ``eye`` looking at ``target`` with a random roll."""
+    T_cam_world = look_at_T_cam_world(eye, target)
+    roll = Rotation.from_rotvec([0, 0, np.deg2rad(rng.normal(0, roll_sigma_deg))]).as_matrix()
+    T_cam_world = make_T(roll, [0, 0, 0]) @ T_cam_world
+    return invert_T(T_cam_world)
+
+
+def sample_rig(rng: np.random.Generator, n_cameras: int, width_px: int, height_px: int,
+               scale: float = 1.0) -> Rig:
+    """Sonar at the origin (small random tilt); one camera anywhere 0.3-1 m from it, or the
+    paper's stereo rig (baseline ~0.74 m, each camera ~0.86 m below-beside the sonar)."""
+    R_ws = _rot(rng.uniform(-4, 4), rng.uniform(-4, 4), rng.uniform(-2, 2))
+    rig = Rig(make_T(R_ws, [0, 0, 0]))
+    if n_cameras == 1:
+        while True:
+            eye = np.array([rng.uniform(-0.2, 0.2), rng.uniform(-0.6, 0.6), -rng.uniform(0.15, 0.9)])
+            if 0.3 <= np.linalg.norm(eye) <= 1.0:
+                break
+        target = np.array([rng.uniform(2.0, 4.0), rng.uniform(-0.6, 0.6), eye[2] + rng.uniform(-0.3, 0.5)])
+        rig.cams["cam1"] = (sample_intrinsics(rng, width_px, height_px, "cam1", scale), _camera_pose(rng, eye, target))
+        return rig
+    b = rng.uniform(0.68, 0.80)
+    h = np.sqrt(max(0.86**2 - (b / 2) ** 2, 0.1)) + rng.uniform(-0.05, 0.05)
+    dx = rng.uniform(-0.1, 0.1)
+    look = np.array([rng.uniform(2.5, 4.0), rng.uniform(-0.2, 0.2), -h + rng.uniform(-0.2, 0.3)])
+    for name, side in (("cam1", 1.0), ("cam2", -1.0)):
+        eye = np.array([dx + rng.normal(0, 0.01), side * b / 2, -h + rng.normal(0, 0.01)])
+        target = look + rng.normal(0, 0.15, 3)
+        rig.cams[name] = (sample_intrinsics(rng, width_px, height_px, name, scale), _camera_pose(rng, eye, target))
+    return rig
+
+
+def silhouette_uv(cam: CameraModel, center_cam_m: np.ndarray, radius_m: float, n: int = 72) -> np.ndarray:
+    """Raw pixels (n,2) of the sphere's outline (the tangent cone); NaN if behind the camera."""
+    C = np.asarray(center_cam_m, float)
+    dist = np.linalg.norm(C)
+    if dist <= radius_m:
+        return np.full((n, 2), np.nan)
+    w = C / dist
+    a = np.arcsin(radius_m / dist)
+    e1 = np.cross(w, [0, 1.0, 0]) if abs(w[1]) < 0.9 else np.cross(w, [1.0, 0, 0])
+    e1 /= np.linalg.norm(e1)
+    e2 = np.cross(w, e1)
+    phi = np.linspace(0, 2 * np.pi, n, endpoint=False)
+    v = np.cos(a) * w[None] + np.sin(a) * (np.cos(phi)[:, None] * e1 + np.sin(phi)[:, None] * e2)
+    if (v[:, 2] <= 1e-6).any():
+        return np.full((n, 2), np.nan)
+    return cam.project(v)
+
+
+def sphere_in_image(cam: CameraModel, T_cam_world: np.ndarray, center_world_m, radius_m: float,
+                    margin_px: float = 0.0) -> bool:
+    """True when the whole silhouette lies inside the image (and in front of the camera)."""
+    C = transform_points(T_cam_world, np.asarray(center_world_m, float)[None])[0]
+    uv = silhouette_uv(cam, C, radius_m)
+    return bool(np.isfinite(uv).all() and cam.in_image(uv, margin_px).all())
+
+
+def in_sonar_field(T_world_sonar, center_world_m, radius_m, pan_span_deg=90.0, fan_deg=90.0,
+                   min_range_m=0.7, max_range_m=8.0, margin_deg=3.0) -> bool:
+    """The whole sphere inside the scanned volume of the sonar (with an angular margin)."""
+    p = transform_points(invert_T(T_world_sonar), np.asarray(center_world_m, float)[None])[0]
+    rng_m = np.linalg.norm(p)
+    if not min_range_m <= rng_m <= max_range_m:
+        return False
+    ang = np.rad2deg(np.arcsin(radius_m / rng_m)) + margin_deg
+    az = np.rad2deg(np.arctan2(p[1], p[0]))
+    el = np.rad2deg(np.arcsin(p[2] / rng_m))
+    return abs(az) + ang <= pan_span_deg / 2 and abs(el) + ang <= fan_deg / 2
+
+
+def sample_target_center(rng, rig: Rig, radius_m: float, ref_cam: str, corner: bool,
+                         ok_extra=lambda c: True, dist_range=(1.0, 4.0), tries: int = 400):
+    """A world-frame sphere centre aimed at a random pixel of ``ref_cam`` (near a corner if
+    asked), 1-4 m away, fully inside every camera's image when possible and inside the
+    sonar's scanned volume. Returns (center_world_m, visible_in_all_cameras)."""
+    cam, T_wc = rig.cams[ref_cam]
+    W, H = cam.width_px, cam.height_px
+    fallback = None
+    for i in range(tries):
+        if corner:
+            u = rng.choice([rng.uniform(0.05, 0.2), rng.uniform(0.8, 0.95)]) * W
+            v = rng.choice([rng.uniform(0.06, 0.22), rng.uniform(0.78, 0.94)]) * H
+        else:
+            u, v = rng.uniform(0.12, 0.88) * W, rng.uniform(0.12, 0.88) * H
+        ray = camera_rays(cam, np.array([[u, v]]))[0]
+        d = rng.uniform(*dist_range)
+        c_world = transform_points(T_wc, (d * ray)[None])[0]
+        if not in_sonar_field(rig.T_world_sonar, c_world, radius_m) or not ok_extra(c_world):
+            continue
+        if any(np.linalg.norm(c_world - T[:3, 3]) < max(0.9, 8 * radius_m) for _, T in rig.cams.values()):
+            continue
+        vis = [sphere_in_image(m, invert_T(T), c_world, radius_m, 2.0) for m, T in rig.cams.values()]
+        if all(vis):
+            return c_world, True
+        if vis[list(rig.cams).index(ref_cam)] and fallback is None:
+            fallback = c_world
+        if corner and i > tries // 2:
+            corner = False  # corners of one camera may be outside the other: relax
+    if fallback is None:
+        raise RuntimeError("could not place the target in view of the sonar and the camera")
+    return fallback, False
