@@ -1,0 +1,220 @@
+"""Sphere detection in camera images.
+
+Main entry: :func:`detect_sphere_in_image`. Steps:
+
+1. coarse candidates in a downscaled image (:mod:`.image_region`): difference to a background
+   model when there is one, else a colour centre-surround contrast; sizes bounded by the
+   intrinsics, the known radius and plausible ranges;
+2. per candidate, full-resolution sub-pixel silhouette edges and a robust fit of the sphere's
+   silhouette cone in undistorted normalised coordinates (:mod:`.image_fit`, :mod:`.image_cone`);
+   the sphere centre's perspective projection follows exactly from the cone axis (then the lens
+   distortion gives raw pixels), and the known radius gives the range;
+3. a verdict: one good candidate -> found; none -> "no sphere" / "sphere cut by the image
+   border" / ...; two good ones -> "two candidates" (never a guess).
+
+``method="hough-circle"`` is the paper's baseline (Canny + Hough circle, circle centre) on the
+same candidate region, for comparison.
+"""
+
+from __future__ import annotations
+
+import time
+from typing import Iterable
+
+import numpy as np
+
+from calib_core.camera import CameraModel
+from calib_core.detect.image_fit import CandidateFit, refine_candidate
+from calib_core.detect.image_hough import hough_circle
+from calib_core.detect.image_region import (Candidate, candidates_from_background,
+                                            candidates_single_frame, choose_scale, downscale,
+                                            radius_bounds_px)
+from calib_core.detect.types import ImageDetection
+
+METHODS = ("ellipse-exact", "hough-circle")
+DEFAULT_RANGE_LIMITS_M = (0.3, 12.0)
+
+
+def background_model(frames_rgb: Iterable[np.ndarray], how: str = "median") -> np.ndarray:
+    """Per-pixel background image from frames without the sphere.
+
+    Args:
+        frames_rgb: RGB uint8 frames (H,W,3), e.g. from
+            :func:`calib_core.io.images.load_background_frames` (a folder or a video window).
+        how: "median" (robust to passing fish, bubbles) or "mean" (the paper's average).
+
+    Returns:
+        float32 (H,W,3) background in grey levels (0-255).
+
+    Raises:
+        ValueError: no frames, frames of different sizes, or an unknown ``how``.
+    """
+    if how not in ("median", "mean"):
+        raise ValueError(f"background model must be 'median' or 'mean', not {how!r}")
+    frames = [np.asarray(f) for f in frames_rgb]
+    if not frames:
+        raise ValueError("no background frames")
+    shape = frames[0].shape
+    if any(f.shape != shape for f in frames):
+        raise ValueError("background frames differ in size")
+    if how == "mean" or len(frames) == 1:
+        acc = np.zeros(shape, np.float64)
+        for f in frames:
+            acc += f
+        return (acc / len(frames)).astype(np.float32)
+    out = np.empty(shape, np.float32)
+    rows = max(1, int(4e6 // (len(frames) * int(np.prod(shape[1:])))))  # ~4 MB per block
+    for r0 in range(0, shape[0], rows):
+        block = np.stack([f[r0:r0 + rows] for f in frames])
+        out[r0:r0 + rows] = np.median(block, axis=0)
+    return out
+
+
+def _not_found(reason: str, method: str, **extras) -> ImageDetection:
+    return ImageDetection(found=False, reason=reason, method=method, extras=extras)
+
+
+def _ellipse_px(sil: np.ndarray) -> tuple:
+    import cv2
+
+    (cx, cy), (a, b), ang = cv2.fitEllipse(sil.astype(np.float32))
+    return ((float(cx), float(cy)), (float(max(a, b)), float(min(a, b))),
+            float(ang if a >= b else (ang + 90.0) % 180.0))
+
+
+def _mean_radius(sil: np.ndarray) -> float:
+    return float(np.mean(np.linalg.norm(sil - sil.mean(axis=0), axis=1)))
+
+
+def _inside(uv: np.ndarray, outline: np.ndarray) -> bool:
+    import cv2
+
+    return cv2.pointPolygonTest(outline.astype(np.float32), (float(uv[0]), float(uv[1])), False) > 0
+
+
+def _hint_candidates(cands, hint_uv, hint_r, r_bounds):
+    hint = np.asarray(hint_uv, float)
+    near = [c for c in cands if np.hypot(*(c.centre_px - hint)) < 1.25 * c.radius_px + 20]
+    near.sort(key=lambda c: np.hypot(*(c.centre_px - hint)))
+    r = hint_r if hint_r is not None else np.sqrt(r_bounds[0] * r_bounds[1])
+    return near + [Candidate(hint, float(r), (float(r), float(r)), 0.0, False, 0.0, "hint")]
+
+
+def detect_sphere_in_image(image_rgb: np.ndarray, cam: CameraModel, sphere_radius_m: float,
+                           background: np.ndarray | None = None, method: str = "ellipse-exact",
+                           hint_uv_px=None, hint_radius_px: float | None = None,
+                           range_limits_m: tuple[float, float] = DEFAULT_RANGE_LIMITS_M,
+                           max_candidates: int = 4, seed: int = 0) -> ImageDetection:
+    """Find the sphere in one raw camera image.
+
+    Args:
+        image_rgb: (H,W,3) RGB uint8 raw (distorted) image, the size ``cam`` describes.
+        cam: intrinsics of the camera.
+        sphere_radius_m: known sphere radius (m).
+        background: (H,W,3) background model (:func:`background_model`) or None (single-frame
+            fallback).
+        method: "ellipse-exact" (default; exact projection of the centre from the silhouette
+            cone) or "hough-circle" (the paper's Canny + Hough circle centre).
+        hint_uv_px: optional (u, v) raw pixel an operator clicked near the sphere: candidates
+            near it are preferred and, if none is found, the fit starts from the hint.
+        hint_radius_px: optional apparent radius (px) for the hint.
+        range_limits_m: plausible camera-to-sphere distances (m); bound the apparent size.
+        max_candidates: most candidates refined at full resolution.
+        seed: seed of the RANSAC sampling (results are deterministic for a seed).
+
+    Returns:
+        :class:`ImageDetection`; ``found`` False with ``reason`` when nothing trustworthy.
+    """
+    t0 = time.perf_counter()
+    if method not in METHODS:
+        raise ValueError(f"unknown image detection method {method!r}; use one of {METHODS}")
+    img = np.asarray(image_rgb)
+    if img.ndim == 2:
+        img = np.repeat(img[..., None], 3, axis=2)
+    H, W = img.shape[:2]
+    if (W, H) != (cam.width_px, cam.height_px):
+        return _not_found(f"image is {W}x{H} but the intrinsics are {cam.width_px}x{cam.height_px}",
+                          method)
+    if background is not None and np.asarray(background).shape[:2] != (H, W):
+        return _not_found("background differs in size from the image", method)
+    d_min, d_max = range_limits_m
+    r_bounds = radius_bounds_px(cam, sphere_radius_m, range_limits_m)
+    if hint_radius_px is not None:
+        r_bounds = (0.6 * hint_radius_px, 1.6 * hint_radius_px)
+    a_range = (np.arcsin(min(sphere_radius_m / (1.25 * d_max), 0.999)),
+               np.arcsin(min(sphere_radius_m / max(0.8 * d_min, sphere_radius_m * 1.001), 0.999)))
+
+    s = choose_scale(r_bounds[0], W)
+    small = downscale(img, s)
+    if background is not None:
+        bg = np.asarray(background, np.float32)
+        cands, _ = candidates_from_background(small, downscale(bg, s), s, r_bounds)
+    else:
+        bg = None
+        cands = candidates_single_frame(small, s, r_bounds)
+    if hint_uv_px is not None:
+        cands = _hint_candidates(cands, hint_uv_px, hint_radius_px, r_bounds)
+    t_region = time.perf_counter()
+    if not cands:
+        return _not_found("no sphere", method, candidates=0)
+
+    rng = np.random.default_rng(seed)
+    fits: list[tuple[Candidate, CandidateFit]] = []
+    for c in cands[:max_candidates]:
+        fits.append((c, refine_candidate(img, cam, c, sphere_radius_m, a_range, bg, rng)))
+        if hint_uv_px is not None and fits[-1][1].ok:
+            break
+    fitted = [(c, f) for c, f in fits if f.credible]
+    good: list[tuple[Candidate, CandidateFit]] = []
+    for c, f in sorted(fits, key=lambda cf: -cf[1].score):
+        if not f.ok:
+            continue
+        r_f = _mean_radius(f.silhouette_px)
+        # texture of a larger fitted object (e.g. the mesh of a sphere cut by the border)
+        if any(_mean_radius(g.silhouette_px) > 2 * r_f and _inside(f.centre_uv_px, g.silhouette_px)
+               for _, g in fitted):
+            continue
+        # the same object found from two candidates: keep the better fit
+        if not any(np.hypot(*(f.centre_uv_px - g.centre_uv_px)) < 0.8 * max(r_f, _mean_radius(g.silhouette_px))
+                   for _, g in good):
+            good.append((c, f))
+    timing = {"region_ms": round(1e3 * (t_region - t0), 2)}
+    if not good:
+        cut = [f for c, f in fits if f.reason == "sphere cut by the image border"]
+        if cut:
+            # the partial fit is often still good: keep it for an operator to confirm
+            best = max(cut, key=lambda f: f.support)
+            return _not_found("sphere cut by the image border", method, candidates=len(cands),
+                              partial_center_uv_px=[round(float(v), 2) for v in best.centre_uv_px])
+        if any(c.touches_border and c.source == "background" for c, _ in fits):
+            reason = "sphere cut by the image border"
+        elif any(f.fit is not None for _, f in fits):
+            reason = next(f.reason for _, f in fits if f.fit is not None)
+        else:
+            reason = "no sphere"
+        return _not_found(reason, method, candidates=len(cands))
+    good.sort(key=lambda cf: -cf[1].score)
+    if len(good) > 1 and hint_uv_px is None and good[1][1].score >= 0.5 * good[0][1].score:
+        return _not_found("two candidates", method, candidates=[
+            [round(float(v), 1) for v in f.centre_uv_px] for _, f in good[:3]])
+    cand, f = good[0]
+    extras = dict(f.extras)
+    extras["candidates"] = len(cands)
+    apparent_r = _mean_radius(f.silhouette_px)
+    rng_sigma = float(sphere_radius_m * np.cos(f.fit.a_rad) / np.sin(f.fit.a_rad) ** 2
+                      * np.sqrt(f.fit.cov_params[2, 2]))
+    extras["range_sigma_m"] = round(rng_sigma, 5)
+    det = ImageDetection(found=True, center_uv_px=f.centre_uv_px, cov_uv_px2=f.cov_uv_px2,
+                         score=f.score, ellipse_px=_ellipse_px(f.silhouette_px),
+                         radius_px=apparent_r, range_m=f.range_m, method=method, extras=extras)
+    if not (0.8 * d_min <= f.range_m <= 1.25 * d_max):
+        return _not_found("apparent size outside the plausible range", method)
+    if method == "hough-circle":
+        h = hough_circle(img, f.centre_uv_px, apparent_r)
+        if h is None:
+            return _not_found("no Hough circle", method)
+        det.center_uv_px, det.radius_px, det.cov_uv_px2 = h[0], h[1], h[2]
+        det.ellipse_px = ((float(h[0][0]), float(h[0][1])), (2 * h[1], 2 * h[1]), 0.0)
+    det.extras["time_ms"] = round(1e3 * (time.perf_counter() - t0), 2)
+    det.extras.update(timing)
+    return det

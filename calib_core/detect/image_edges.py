@@ -1,0 +1,105 @@
+"""Sub-pixel silhouette edge points sampled along normals (raw pixel coordinates).
+
+Profiles of a (smoothed) signal image are read with bilinear interpolation along short
+segments crossing the expected silhouette; the edge on each segment is the sub-pixel peak
+(parabola through three samples) of the profile's gradient magnitude. The signal is either
+the colour image itself or its per-pixel distance to a background colour, so a sphere darker
+or brighter than its surroundings gives the same kind of peak.
+"""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+
+
+def sample_profiles(signal: np.ndarray, origin_px: tuple[float, float], points_px: np.ndarray,
+                    normals: np.ndarray, t_px: np.ndarray) -> np.ndarray:
+    """Bilinear samples of ``signal`` (h,w[,c]) along ``points + t * normals``.
+
+    Args:
+        signal: float32 image of a region of interest whose pixel (0,0) is the full image's
+            ``origin_px`` (x, y).
+        points_px: (K,2) segment centres, full-image raw pixels.
+        normals: (K,2) unit directions.
+        t_px: (M,) offsets along the normals (px).
+
+    Returns:
+        (K, M, c) profiles (c = 1 for a single-channel signal).
+    """
+    pts = points_px[:, None, :] + t_px[None, :, None] * normals[:, None, :]
+    mx = (pts[..., 0] - origin_px[0]).astype(np.float32)
+    my = (pts[..., 1] - origin_px[1]).astype(np.float32)
+    prof = cv2.remap(signal, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+    if prof.ndim == 2:
+        prof = prof[..., None]
+    return prof
+
+
+def gradient_magnitude(profiles: np.ndarray, step_px: float) -> np.ndarray:
+    """|d profile / dt| summed over channels in quadrature, (K, M) (central differences)."""
+    d = np.zeros_like(profiles)
+    d[:, 1:-1] = (profiles[:, 2:] - profiles[:, :-2]) / (2 * step_px)
+    return np.sqrt((d * d).sum(axis=2))
+
+
+def pick_edges(t_px: np.ndarray, g: np.ndarray, rule: str, min_strength: float,
+               target_px: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """One sub-pixel edge per profile.
+
+    Args:
+        t_px: (M,) offsets, evenly spaced.
+        g: (K, M) gradient magnitude.
+        rule: "outermost" (the last local maximum above ``min_strength``; for the first pass,
+            where texture inside the sphere also makes edges) or "nearest" (the local maximum
+            above ``min_strength`` closest to ``target_px``; for the refinement pass).
+        min_strength: scalar or (K,) threshold.
+        target_px: (K,) expected offsets for "nearest" (default 0).
+
+    Returns:
+        (t_edge (K,), strength (K,)); t_edge is NaN where no edge qualifies.
+    """
+    K, M = g.shape
+    step = float(t_px[1] - t_px[0])
+    thr = np.broadcast_to(np.asarray(min_strength, float), (K,))[:, None]
+    peak = np.zeros_like(g, dtype=bool)
+    peak[:, 1:-1] = (g[:, 1:-1] >= g[:, :-2]) & (g[:, 1:-1] > g[:, 2:]) & (g[:, 1:-1] >= thr)
+    if rule == "outermost":
+        idx = np.where(peak, np.arange(M)[None, :], -1).max(axis=1)
+    else:
+        tgt = np.zeros(K) if target_px is None else np.asarray(target_px, float)
+        dist = np.where(peak, np.abs(t_px[None, :] - tgt[:, None]), np.inf)
+        idx = np.where(np.isfinite(dist).any(axis=1), dist.argmin(axis=1), -1)
+    ok = idx > 0
+    i = np.clip(idx, 1, M - 2)
+    rows = np.arange(K)
+    gm, g0, gp = g[rows, i - 1], g[rows, i], g[rows, i + 1]
+    den = gm - 2 * g0 + gp
+    off = np.where(np.abs(den) > 1e-12, 0.5 * (gm - gp) / np.where(den == 0, 1, den), 0.0)
+    off = np.clip(off, -0.5, 0.5)
+    t_edge = np.where(ok, t_px[i] + off * step, np.nan)
+    return t_edge, np.where(ok, g0, 0.0)
+
+
+def smooth_roi(image: np.ndarray, x0: int, y0: int, x1: int, y1: int, sigma_px: float) -> np.ndarray:
+    """float32 Gaussian-smoothed crop [y0:y1, x0:x1] of an image (any channel count)."""
+    roi = np.ascontiguousarray(image[y0:y1, x0:x1]).astype(np.float32)
+    if sigma_px > 0:
+        roi = cv2.GaussianBlur(roi, (0, 0), sigma_px)
+    return roi
+
+
+def ray_directions(n: int) -> np.ndarray:
+    """(n,2) unit vectors evenly spread over the circle."""
+    th = np.linspace(0, 2 * np.pi, n, endpoint=False)
+    return np.column_stack([np.cos(th), np.sin(th)])
+
+
+def outward_normals(closed_curve_px: np.ndarray, centre_px: np.ndarray) -> np.ndarray:
+    """Unit normals (n,2) of a closed polyline, oriented away from ``centre_px``."""
+    tang = np.roll(closed_curve_px, -1, axis=0) - np.roll(closed_curve_px, 1, axis=0)
+    nrm = np.column_stack([tang[:, 1], -tang[:, 0]])
+    nrm /= np.maximum(np.linalg.norm(nrm, axis=1, keepdims=True), 1e-12)
+    flip = ((closed_curve_px - centre_px) * nrm).sum(axis=1) < 0
+    nrm[flip] *= -1
+    return nrm

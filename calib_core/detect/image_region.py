@@ -1,0 +1,260 @@
+"""Coarse sphere candidates in a downscaled image (where to look at full resolution).
+
+Two sources:
+- with a background image: the per-pixel colour difference to the background, thresholded
+  above its noise level; opening removes thin things (the chain), closing fills the open-mesh
+  holes; connected blobs of plausible size are candidates;
+- without a background: a colour centre-surround contrast (mean colour in a disc-sized box
+  against the mean colour in a ring around it, over a range of radii) finds compact blobs darker
+  or brighter than their surroundings, in any colour.
+
+Sizes are bounded by the intrinsics and the known radius (:func:`radius_bounds_px`). All
+coordinates returned are full-resolution raw pixels.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+from calib_core.camera import CameraModel
+
+
+@dataclass
+class Candidate:
+    """A coarse sphere candidate (full-resolution raw pixels)."""
+
+    centre_px: np.ndarray  # (2,) x, y
+    radius_px: float  # mean radius
+    axes_px: tuple[float, float]  # semi-axes (major, minor)
+    angle_rad: float  # major axis direction
+    touches_border: bool
+    strength: float  # contrast (grey levels)
+    source: str  # "background", "contrast", "hint"
+
+
+def radius_bounds_px(cam: CameraModel, sphere_radius_m: float,
+                     range_limits_m: tuple[float, float]) -> tuple[float, float]:
+    """Plausible apparent radius range (px) of the sphere over the range limits.
+
+    On the optical axis the silhouette radius is ``f tan(asin(r/d))``; off axis the ellipse
+    grows (up to ``1/cos^2`` of the field angle along the radial direction) and barrel
+    distortion shrinks it, so callers widen these bounds.
+    """
+    f = 0.5 * (cam.fx + cam.fy)
+    d_min, d_max = range_limits_m
+    a_max = np.arcsin(min(sphere_radius_m / max(d_min, sphere_radius_m * 1.0001), 0.999))
+    a_min = np.arcsin(min(sphere_radius_m / d_max, 0.999))
+    return float(f * np.tan(a_min)), float(f * np.tan(a_max))
+
+
+def choose_scale(r_min_px: float, width_px: int) -> int:
+    """Downscale factor (1, 2 or 4) so the smallest plausible sphere keeps >= ~2.5 px of radius."""
+    s = 1
+    while s < 4 and r_min_px / (2 * s) >= 2.5 and width_px / (2 * s) >= 240:
+        s *= 2
+    return s
+
+
+def downscale(image: np.ndarray, s: int) -> np.ndarray:
+    """Area-average downscale by a power of two (repeated 2x2 averaging, OpenCV's fast path)."""
+    out = image
+    while s > 1:
+        h, w = out.shape[:2]
+        out = cv2.resize(out, (w // 2, h // 2), interpolation=cv2.INTER_AREA)
+        s //= 2
+    return out
+
+
+def _odd(k: float) -> int:
+    k = max(3, int(round(k)))
+    return k if k % 2 else k + 1
+
+
+def _blob_ellipse(ys, xs):
+    cx, cy = xs.mean(), ys.mean()
+    cov = np.cov(np.vstack([xs - cx, ys - cy])) if len(xs) > 2 else np.eye(2)
+    lam, vec = np.linalg.eigh(cov)
+    lam = np.maximum(lam, 1e-6)
+    major, minor = 2 * np.sqrt(lam[1]), 2 * np.sqrt(lam[0])  # filled ellipse: var = a^2/4
+    return cx, cy, major, minor, float(np.arctan2(vec[1, 1], vec[0, 1]))
+
+
+def _drop_thin_parts(blob: np.ndarray) -> np.ndarray:
+    """Keep the thick core of a blob: an opening by a disc of ~1/3 of its inscribed radius
+    removes lines attached to it (the chain) but not the round body."""
+    dt = cv2.distanceTransform(np.pad(blob, 1), cv2.DIST_L2, 3)[1:-1, 1:-1]
+    r_in = float(dt.max())
+    k = int(2 * round(0.35 * r_in) + 1)
+    if k < 3:
+        return blob
+    opened = cv2.morphologyEx(blob, cv2.MORPH_OPEN, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (k, k)))
+    n, lab = cv2.connectedComponents(opened, connectivity=8)
+    if n <= 1:
+        return blob
+    yx = np.unravel_index(int(np.argmax(dt)), dt.shape)
+    keep = lab[yx] if lab[yx] > 0 else 1 + int(np.argmax(np.bincount(lab.ravel())[1:]))
+    return (lab == keep).astype(np.uint8)
+
+
+def candidates_from_background(small: np.ndarray, bg_small: np.ndarray, s: int,
+                               r_bounds_px: tuple[float, float],
+                               min_contrast: float = 8.0) -> tuple[list[Candidate], np.ndarray]:
+    """Blobs that differ from the background, of plausible size.
+
+    Args:
+        small: downscaled RGB image (uint8 or float); bg_small: same-size background (float).
+        s: downscale factor (full px = small px * s).
+        r_bounds_px: plausible full-resolution radius range.
+        min_contrast: smallest colour difference (grey levels) that counts.
+
+    Returns:
+        (candidates sorted by strength, difference image D (small, float32, grey levels)).
+    """
+    diff = small.astype(np.float32) - bg_small.astype(np.float32)
+    # a global brightness change between the background and the capture is not the sphere
+    diff -= np.median(diff[::4, ::4].reshape(-1, diff.shape[2]), axis=0)
+    D = np.sqrt((diff * diff).sum(axis=2))
+    r_lo_s = r_bounds_px[0] / s
+    Db = cv2.GaussianBlur(D, (0, 0), max(1.0, 0.12 * r_lo_s))
+    sub = Db[::2, ::2]
+    med = float(np.median(sub))
+    mad = float(np.median(np.abs(sub - med))) * 1.4826
+    thr = max(med + 6.0 * mad, med + min_contrast * 0.6, min_contrast * 0.6)
+    mask = (Db > thr).astype(np.uint8)
+    k = _odd(0.45 * r_lo_s)
+    ker = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (k, k))
+    mask = cv2.morphologyEx(mask, cv2.MORPH_OPEN, ker)
+    mask = cv2.morphologyEx(mask, cv2.MORPH_CLOSE, ker)
+    n, lab, stats, _ = cv2.connectedComponentsWithStats(mask, connectivity=8)
+    h, w = mask.shape
+    out = []
+    r_min, r_max = r_bounds_px
+    for i in range(1, n):
+        x, y, bw, bh, area = stats[i]
+        if np.sqrt(area / np.pi) * s < 0.45 * r_min:
+            continue
+        blob = _drop_thin_parts((lab[y:y + bh, x:x + bw] == i).astype(np.uint8))
+        ys, xs = np.nonzero(blob)
+        r_eq = np.sqrt(len(xs) / np.pi) * s
+        if r_eq < 0.45 * r_min or r_eq > 2.2 * r_max:
+            continue
+        cx, cy, ma, mi, ang = _blob_ellipse(ys + y, xs + x)
+        touches = xs.min() + x <= 1 or ys.min() + y <= 1 or xs.max() + x >= w - 2 or ys.max() + y >= h - 2
+        if not touches and mi / ma < 0.4:
+            continue
+        strength = float(np.median(D[ys + y, xs + x]))
+        # small px centre (pixel centres) -> full px: (p + 0.5) * s - 0.5
+        c_full = (np.array([cx, cy]) + 0.5) * s - 0.5
+        rad = np.sqrt(ma * mi) * s if not touches else max(ma * s, r_eq)
+        out.append(Candidate(c_full, float(rad), (float(ma * s), float(mi * s)), ang,
+                             bool(touches), strength, "background"))
+    out.sort(key=lambda c: -c.strength * c.radius_px)
+    return out, D
+
+
+def _box_sum(a: np.ndarray, half_x: int, half_y: int) -> np.ndarray:
+    return cv2.boxFilter(a, -1, (2 * half_x + 1, 2 * half_y + 1), normalize=False,
+                         borderType=cv2.BORDER_CONSTANT)
+
+
+def _shift(a: np.ndarray, dx: int, dy: int) -> np.ndarray:
+    """out[y, x] = a[y + dy, x + dx], zero outside."""
+    out = np.zeros_like(a)
+    h, w = a.shape[:2]
+    ys, yd = (slice(dy, h), slice(0, h - dy)) if dy >= 0 else (slice(0, h + dy), slice(-dy, h))
+    xs, xd = (slice(dx, w), slice(0, w - dx)) if dx >= 0 else (slice(0, w + dx), slice(-dx, w))
+    out[yd, xd] = a[ys, xs]
+    return out
+
+
+def _centre_surround(I: np.ndarray, valid: np.ndarray, R: float) -> np.ndarray:
+    """Isotropic colour contrast of a disc of radius R (px of this level) at every pixel.
+
+    The mean colour of the inscribed box is compared with four boxes just outside the disc
+    (left, right, above, below); the response is the SMALLEST of the four colour differences,
+    so a disc standing out on all sides responds and the edge or corner of a large object
+    (same colour as the inside on one side) does not. Sums skip pixels outside the image.
+    """
+    hi = max(1, int(round(0.7 * R)))
+    ki = max(hi + 1, int(round(1.15 * R)))
+    ko = max(ki + 1, int(round(1.5 * R)))
+    hx, off = max(1, (ko - ki) // 2), (ki + ko + 1) // 2
+    m_in = _box_sum(I, hi, hi) / np.maximum(_box_sum(valid, hi, hi), 1e-6)[..., None]
+    C = np.full(I.shape[:2], np.inf, np.float32)
+    n_sides = np.zeros(I.shape[:2], np.int32)
+    full = (2 * hx + 1) * (2 * hi + 1)
+    for (kx, ky) in ((hx, hi), (hi, hx)):
+        S, N = _box_sum(I, kx, ky), _box_sum(valid, kx, ky)
+        for sgn in (-1, 1):
+            dx, dy = (sgn * off, 0) if kx == hx else (0, sgn * off)
+            Ss, Ns = _shift(S, dx, dy), _shift(N, dx, dy)
+            ok = Ns > 0.4 * full
+            d = m_in - Ss / np.maximum(Ns, 1e-6)[..., None]
+            c = np.sqrt((d * d).sum(axis=2))
+            C = np.where(ok, np.minimum(C, c), C)
+            n_sides += ok
+    C[(n_sides < 2) | ~np.isfinite(C)] = 0
+    return C
+
+
+def candidates_single_frame(small: np.ndarray, s: int, r_bounds_px: tuple[float, float],
+                            max_candidates: int = 6, min_contrast: float = 6.0) -> list[Candidate]:
+    """Compact blobs darker or brighter than their surroundings (no background needed).
+
+    Approximation: square boxes stand in for the disc and its surroundings (box filters are
+    O(1) per pixel at any size); the radius found is good to ~20 %, enough to place the edge
+    search.
+    """
+    I0 = small.astype(np.float32)
+    h, w = I0.shape[:2]
+    r_lo = max(2.5, 0.8 * r_bounds_px[0] / s)
+    r_hi = min(1.3 * r_bounds_px[1] / s, 0.5 * min(h, w))
+    if r_hi < r_lo:
+        return []
+    radii = np.exp(np.arange(np.log(r_lo), np.log(r_hi) + 1e-9, np.log(1.25)))
+    pyramid = [(I0, np.ones((h, w), np.float32))]
+    maps = []
+    for R in radii:
+        # work where the radius is 3-6 px: a pyramid level 2^L smaller
+        L = max(0, int(np.floor(np.log2(R / 3.0))))
+        while len(pyramid) <= L:
+            pyramid.append(tuple(downscale(a, 2) for a in pyramid[-1]))
+        I, valid = pyramid[L]
+        RL = R / 2 ** L
+        C = _centre_surround(I, valid, RL)
+        if L:
+            C = cv2.resize(C, (w, h), interpolation=cv2.INTER_LINEAR)
+        maps.append(C)
+    stack = np.stack(maps)  # (S, h, w)
+    # scale-space maxima: local maximum in space (window ~ the radius) and over neighbour scales
+    peaks = []
+    for i, R in enumerate(radii):
+        C = stack[i]
+        k = _odd(1.2 * R)
+        dil = cv2.dilate(C, cv2.getStructuringElement(cv2.MORPH_RECT, (k, k)))
+        m = (C >= dil) & (C >= min_contrast)
+        if i > 0:
+            m &= C >= stack[i - 1]
+        if i + 1 < len(radii):
+            m &= C >= stack[i + 1]
+        ys, xs = np.nonzero(m)
+        peaks += [(float(C[y, x]), float(R), int(x), int(y)) for y, x in zip(ys, xs)]
+    if not peaks:
+        return []
+    # rank: contrast, with a mild preference for larger radii (the open-mesh holes of a near
+    # sphere have more contrast than the sphere as a whole)
+    peaks.sort(key=lambda p: -p[0] * p[1] ** 0.25)
+    out: list[Candidate] = []
+    for C, R, x, y in peaks:
+        c_full = (np.array([x, y], float) + 0.5) * s - 0.5
+        if any(np.hypot(*(c.centre_px - c_full)) < 0.6 * max(c.radius_px, R * s)
+               and 0.6 < c.radius_px / (R * s) < 1.7 for c in out):
+            continue  # the same object at a neighbouring scale/position
+        touches = x - R < 1 or y - R < 1 or x + R > w - 2 or y + R > h - 2
+        out.append(Candidate(c_full, R * s, (R * s, R * s), 0.0, bool(touches), C, "contrast"))
+        if len(out) >= max_candidates:
+            break
+    return out

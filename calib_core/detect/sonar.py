@@ -1,0 +1,321 @@
+"""Find the calibration sphere in a sonar point cloud (sonar frame, metres).
+
+Main entry: :func:`detect_sphere_in_cloud`.
+
+Beam-width (blooming) model. The sonar sits at the origin of the cloud's frame; each beam
+has a centre-line direction ``d`` (the direction of its point from the origin) and a cone of
+half-angle ``h = beam_width / 2``; it reports the FIRST return inside its cone, placed along
+``d``. For a sphere (centre ``c``, radius ``r``) the range to the sphere along a direction at
+angle ``phi`` from ``c/|c|`` is ``rho(phi) = |c| cos(phi) - sqrt(r^2 - |c|^2 sin^2(phi))``
+(the near root of ``|t u - c| = r``), which grows with ``phi`` up to the limb
+``phi_t = asin(r/|c|)``. The cone of a beam at angle ``theta`` from ``c/|c|`` contains the
+directions whose angle to ``c/|c|`` lies in ``[max(theta - h, 0), theta + h]``, so its first
+return is at ``rho(max(theta - h, 0))`` while ``theta - h <= phi_t`` and there is none beyond.
+Beams whose centre line misses the sphere but whose cone grazes it therefore report points
+outside the true silhouette, nearer than the surface along their centre line: the cloud looks
+bigger and closer. Fitting ``c`` with this model removes that bias; the naive fits (Euclidean
+distance to a sphere of known or free radius) are kept as baselines.
+
+Pipeline: coarse candidates on a thinned, voxelised cloud without its large planes
+(:mod:`.sonar_search`); each candidate is re-fitted at full resolution inside a crop with the
+cone model and judged (coverage of the expected disc of beams, purity of the returns inside
+it, residual scale, diameter); more than one acceptable candidate gives "two candidates".
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from scipy.spatial import cKDTree
+
+from calib_core.detect.sonar_fit import MAD_TO_SIGMA, FitResult, angle_to_axis_rad, fit_sphere
+from calib_core.detect.sonar_search import Candidate, disc_coverage, find_candidates, ring_sectors
+from calib_core.detect.types import SonarDetection
+
+METHODS = ("cone-model", "known-radius", "free-radius")
+MIN_POINTS = 20
+JUDGE_POINTS = 1000
+MIN_INLIERS = 12
+MIN_COVERAGE = 0.7
+MIN_COVERAGE_SEEDED = 0.4
+MIN_PURITY = 0.6
+MAX_RING_SECTORS = 3  # of 8 around the disc: a chain or a stand, not a seabed or a wall
+# relative (and at least 3 sigma): a larger difference between the diameter the cone model
+# sees and session.yaml's is reported, and the sphere is then fitted with the diameter it shows
+DIAMETER_TOL = 0.08
+
+
+@dataclass
+class _Judged:
+    """A candidate re-fitted at full resolution (indices into the working cloud)."""
+
+    cand: Candidate
+    idx: np.ndarray  # crop (indices into the working cloud)
+    idx_j: np.ndarray  # the subset of the crop the judgement used (indices into idx)
+    fit: FitResult
+    radius_cone_m: float
+    coverage: float
+    purity: float
+    score: float
+    problem: str  # "" when acceptable
+    radius_fit_m: float = float("nan")  # radius of ``fit``: the session's, or the one seen
+
+
+def _crop(P: np.ndarray, center: np.ndarray, radius: float) -> np.ndarray:
+    """Indices of the points within ``radius`` of ``center`` (box test first, it is cheaper)."""
+    box = np.nonzero(np.abs(P[:, 0] - center[0]) < radius)[0]
+    box = box[np.abs(P[box, 1] - center[1]) < radius]
+    d = P[box] - center
+    return box[np.einsum("ij,ij->i", d, d) < radius * radius]
+
+
+def _roughness_m(ranges_m: np.ndarray, dirs: np.ndarray, k: int = 8) -> float:
+    """Model-free range noise scale (m): robust spread of each range about the median range of
+    its ``k`` angular neighbours (smooth surfaces cancel; about 1.2 x the range noise)."""
+    if len(ranges_m) <= k:
+        return float("nan")
+    _, nb = cKDTree(dirs).query(dirs, k=k + 1)
+    return float(MAD_TO_SIGMA * np.median(np.abs(ranges_m - np.median(ranges_m[nb[:, 1:]], axis=1))))
+
+
+def _assess(X, R, D, fit: FitResult, radius: float, h: float, seeded: bool):
+    """(coverage, purity, problem) of a cone-model fit of a sphere of ``radius`` to the crop."""
+    c = fit.center_m
+    cn = float(np.linalg.norm(c))
+    alpha = float(np.arcsin(min(radius / cn, 1.0))) + h
+    theta = angle_to_axis_rad(D, c / cn)
+    in_disc = theta <= alpha * 1.02
+    inl = fit.inliers
+    n_in = int(inl.sum())
+    purity = float((inl & in_disc).sum() / max(int(in_disc.sum()), 1))
+    coverage = disc_coverage(D[inl], c / cn, alpha)
+    sig = fit.sigma_m
+    rough = _roughness_m(R[in_disc], D[in_disc])
+    near_range = (R > cn - 1.5 * radius) & (R < cn + radius)
+    ring = ring_sectors(D[near_range], c / cn, alpha * 1.05, max(0.5 * alpha, 2 * h))
+    problem = ""
+    if n_in < MIN_INLIERS:
+        problem = f"too few points on the sphere ({n_in})"
+    elif sig > 0.3 * radius:
+        problem = f"returns too scattered for a sphere (sigma {sig * 1000:.0f} mm)"
+    elif not sig <= 2.0 * rough + 0.002:  # the surface is smooth but not this sphere
+        problem = (f"not sphere-shaped (fit sigma {sig * 1000:.0f} mm, surface noise "
+                   f"{rough * 1000:.0f} mm)")
+    elif purity < MIN_PURITY:
+        problem = f"not sphere-shaped (only {purity:.0%} of the returns on the sphere)"
+    elif coverage < (MIN_COVERAGE_SEEDED if seeded else MIN_COVERAGE):
+        problem = f"sphere only partly seen (coverage {coverage:.0%})"
+    elif ring > MAX_RING_SECTORS and not seeded:
+        problem = f"part of a larger surface (returns all around it, {ring}/8 sectors)"
+    return coverage, purity, problem
+
+
+def _judge(P: np.ndarray, cand: Candidate, r: float, h: float, seeded: bool) -> _Judged:
+    """Full-resolution cone-model fits and tests around one coarse candidate.
+
+    The sphere is fitted with the session radius and, robustly, with a free radius; when the
+    free radius differs by more than DIAMETER_TOL (a decoy, or a wrong diameter in
+    session.yaml) the candidate is judged, and later refined, with the radius it shows.
+    """
+    c0 = cand.center_m
+    cn0 = float(np.linalg.norm(c0))
+    # the coarse free-radius centre sits too far by about (apparent - true radius)
+    start = c0 * max(cn0 - (cand.radius_m - r), r * 1.5) / cn0
+    crop_r = 1.6 * r + cn0 * np.tan(h) + 0.05
+    idx = _crop(P, start, crop_r)
+    bad = _Judged(cand, idx, np.arange(len(idx)), None, float("nan"), 0.0, 0.0, 0.0, "")
+    if len(idx) < MIN_INLIERS:
+        bad.problem = f"too few points on the candidate ({len(idx)})"
+        return bad
+    # judged on at most JUDGE_POINTS points (a random subset); _finish refits on them all
+    if len(idx) > JUDGE_POINTS:
+        idx_j = np.sort(np.random.default_rng(0).choice(len(idx), JUDGE_POINTS, replace=False))
+    else:
+        idx_j = np.arange(len(idx))
+    X = P[idx[idx_j]]
+    fit = fit_sphere(X, start, r, model="cone", half_angle_rad=h, sigma0_m=0.01)
+    bad.fit, bad.idx_j = fit, idx_j
+    cn = float(np.linalg.norm(fit.center_m))
+    if not fit.ok or cn <= r or np.linalg.norm(fit.center_m - start) > r:
+        bad.problem = "sphere fit did not converge"
+        return bad
+    R = np.linalg.norm(X, axis=1)
+    D = X / R[:, None]
+    coverage, purity, problem = _assess(X, R, D, fit, r, h, seeded)
+    r_fit, r_cone = r, float("nan")
+    if not problem:  # the diameter the cone model supports, precisely: on the inliers
+        fine = fit_sphere(X[fit.inliers], fit.center_m, r, model="cone", free_radius=True,
+                          half_angle_rad=h, sigma0_m=max(fit.sigma_m, 1e-3), n_rounds=2,
+                          warm=True)
+        r_cone = fine.radius_m if fine.ok else float("nan")
+    if problem or not abs(r_cone - r) <= DIAMETER_TOL * r:
+        # perhaps a sphere of another size (a decoy, or a wrong diameter in session.yaml):
+        # free radius, robustly on all points, judged with the size it shows
+        free = fit_sphere(X, fit.center_m, r, model="cone", free_radius=True, half_angle_rad=h,
+                          sigma0_m=max(fit.sigma_m, 1e-3))
+        tol = max(DIAMETER_TOL * r, 3.0 * np.sqrt(max(free.cov_radius_m2, 0.0)))
+        if (free.ok and abs(free.radius_m - r) > tol and 0.6 * r <= free.radius_m <= 1.6 * r
+                and float(np.linalg.norm(free.center_m)) > free.radius_m):
+            fit, r_fit, r_cone = free, free.radius_m, free.radius_m
+            coverage, purity, problem = _assess(X, R, D, fit, r_fit, h, seeded)
+    if not problem and not (np.isfinite(r_cone) and 0.6 * r <= r_cone <= 1.6 * r):
+        problem = f"wrong size (diameter {2 * r_cone:.3f} m, expected {2 * r:.3f} m)"
+    rel = (r_cone - r) / r if np.isfinite(r_cone) else 0.0
+    sig = fit.sigma_m
+    score = coverage * purity * float(np.exp(-0.5 * (rel / 0.15) ** 2)) / (1 + (sig / (0.1 * r)) ** 2)
+    return _Judged(cand, idx, idx_j, fit, float(r_cone), coverage, purity,
+                   float(np.clip(score, 0, 1)), problem, r_fit)
+
+
+def _not_found(reason: str, method: str, **extras) -> SonarDetection:
+    return SonarDetection(found=False, reason=reason, method=method, extras=dict(extras))
+
+
+def detect_sphere_in_cloud(points_sonar_m: np.ndarray, sphere_radius_m: float,
+                           beam_width_deg: float = 1.0, method: str = "cone-model",
+                           seed_center_m=None, seed_radius_m: float = 0.3,
+                           rng_seed: int = 0) -> SonarDetection:
+    """Find one sphere of known radius in a sonar cloud.
+
+    Args:
+        points_sonar_m: (N,3) finite points in the sonar frame (m); the beams start at the
+            frame origin.
+        sphere_radius_m: the target's radius from session.yaml (m).
+        beam_width_deg: full beam width (deg; BV5000: 1). The cone-model fit uses half of it.
+        method: "cone-model" (beam-width aware), or the naive baselines "known-radius"
+            (least squares on the distance to a sphere of the known radius) and "free-radius"
+            (radius fitted too). All three share the candidate search and the tests.
+        seed_center_m: optional (3,) point (m, sonar frame) an operator picked on or near the
+            sphere: only points within ``seed_radius_m`` + a sphere's reach are searched, and
+            the acceptable candidate nearest the pick wins.
+        seed_radius_m: search radius around the seed (m).
+        rng_seed: seed of the random thinning and RANSAC (results are deterministic).
+
+    Returns:
+        :class:`SonarDetection`; ``found=False`` with a ``reason`` when nothing trustworthy is
+        found ("empty cloud", "too few points", "no sphere-like cluster", "two candidates", ...).
+    """
+    if method not in METHODS:
+        raise ValueError(f"unknown sonar detection method {method!r}; use one of {METHODS}")
+    P = np.asarray(points_sonar_m, dtype=float).reshape(-1, 3)
+    r = float(sphere_radius_m)
+    h = np.radians(float(beam_width_deg)) / 2.0
+    n_all = len(P)
+    if n_all == 0:
+        return _not_found("empty cloud", method, n_points=0)
+    if n_all < MIN_POINTS:
+        return _not_found(f"too few points ({n_all} < {MIN_POINTS})", method, n_points=n_all)
+    rng = np.random.default_rng(rng_seed)
+    base = None  # indices of the working cloud in the input (None: all of it)
+    seed = None
+    if seed_center_m is not None:
+        seed = np.asarray(seed_center_m, float).reshape(3)
+        reach = float(seed_radius_m) + 2.0 * r + float(np.linalg.norm(seed)) * np.tan(h) + 0.05
+        base = _crop(P, seed, reach)
+        if len(base) < MIN_POINTS:
+            return _not_found(f"too few points near the picked point ({len(base)})", method,
+                              n_points=n_all)
+    W = P if base is None else P[base]
+    cands, info = find_candidates(W, r, h, rng)
+    if not cands:
+        return _not_found("no sphere-like cluster", method, n_points=n_all, **info)
+    if seed is not None:
+        cands = sorted(cands, key=lambda k: np.linalg.norm(k.center_m - seed))
+        cands = [k for k in cands if np.linalg.norm(k.center_m - seed) < seed_radius_m + 2 * r]
+        if not cands:
+            return _not_found("nothing sphere-like near the picked point", method, n_points=n_all)
+    judged = [_judge(W, k, r, h, seed is not None) for k in cands[:4]]
+    good = [j for j in judged if not j.problem]
+    good = _dedupe(good, r)
+    if not good:
+        best = max(judged, key=lambda j: j.score)
+        why = best.problem or "no sphere-like cluster"
+        return _not_found(f"no sphere-like cluster ({why})", method, n_points=n_all,
+                          n_candidates=len(judged))
+    extras: dict = {}
+    nominal = [j for j in good if j.radius_fit_m == r]
+    other = [j for j in good if j.radius_fit_m != r]
+    if seed is not None:  # the operator's pick decides, whatever its size
+        chosen = min(good, key=lambda j: np.linalg.norm(j.fit.center_m - seed))
+    elif len(nominal) > 1:
+        pos = "; ".join(str(np.round(k.fit.center_m, 3).tolist()) for k in nominal[:3])
+        return _not_found(f"two candidates (at {pos} m)", method, n_points=n_all,
+                          n_candidates=len(good))
+    elif not nominal:  # sphere-like, but not of session.yaml's size: a decoy or a wrong diameter
+        k = max(other, key=lambda j: j.score)
+        return _not_found(
+            f"only a sphere of another size: diameter {2 * k.radius_cone_m:.3f} m, session.yaml "
+            f"says {2 * r:.3f} m (check the diameter, or pick the sphere by hand)", method,
+            n_points=n_all, candidate_center=[round(float(v), 4) for v in k.fit.center_m],
+            candidate_diameter_m=round(2 * k.radius_cone_m, 4))
+    else:
+        chosen = nominal[0]
+        if other:
+            extras["ignored_other_sizes_m"] = [round(2 * k.radius_cone_m, 4) for k in other]
+    return _finish(P, W, base, chosen, r, h, method, n_all, info, extras)
+
+
+def _dedupe(judged: list[_Judged], r: float) -> list[_Judged]:
+    out: list[_Judged] = []
+    for j in sorted(judged, key=lambda j: -j.score):
+        if all(np.linalg.norm(j.fit.center_m - o.fit.center_m) > r for o in out):
+            out.append(j)
+    return out
+
+
+def _finish(P, W, base, j: _Judged, r, h, method, n_all, info, extras) -> SonarDetection:
+    """Method-specific final fit on the chosen candidate's crop; assemble the detection."""
+    X = W[j.idx]
+    Xj = X[j.idx_j]
+    cone = j.fit
+    other_size = j.radius_fit_m != r
+    if len(Xj) < len(X):  # refine on every point of the crop
+        cone = fit_sphere(X, cone.center_m, j.radius_fit_m, model="cone", half_angle_rad=h,
+                          free_radius=other_size, sigma0_m=cone.sigma_m, n_rounds=3, warm=True)
+        if not cone.ok:
+            return _not_found("sphere fit did not converge", method, n_points=n_all)
+    apparent = fit_sphere(Xj, cone.center_m, r, model="euclid", free_radius=True,
+                          sigma0_m=max(cone.sigma_m, 2e-3))
+    if method == "cone-model":
+        fit = cone
+    elif method == "known-radius":
+        fit = fit_sphere(X, cone.center_m, r, model="euclid", sigma0_m=max(cone.sigma_m, 2e-3))
+    elif len(Xj) == len(X):
+        fit = apparent
+    else:
+        fit = fit_sphere(X, apparent.center_m, apparent.radius_m, model="euclid",
+                         free_radius=True, sigma0_m=apparent.sigma_m, n_rounds=2, warm=True)
+    if not fit.ok:
+        return _not_found("sphere fit did not converge", method, n_points=n_all)
+    mask = np.zeros(n_all, bool)
+    sel = j.idx[fit.inliers]
+    mask[sel if base is None else base[sel]] = True
+    cn = float(np.linalg.norm(fit.center_m))
+    extras.update({
+        "range_m": round(cn, 4),
+        "sigma_range_m": round(float(cone.sigma_m), 5),
+        "coverage": round(j.coverage, 3),
+        "purity": round(j.purity, 3),
+        "planes_removed": int(info.get("planes_removed", 0)),
+    })
+    if other_size:
+        extras["warning"] = (f"sonar sees a sphere of diameter {2 * j.radius_cone_m:.3f} m, "
+                             f"session.yaml says {2 * r:.3f} m")
+    if other_size and method == "cone-model":
+        extras["fitted_with_diameter_m"] = round(2 * cone.radius_m, 4)
+    return SonarDetection(
+        found=True,
+        center_sonar_m=np.asarray(fit.center_m, float),
+        cov_sonar_m2=np.asarray(fit.cov_center_m2, float),
+        n_inliers=int(fit.inliers.sum()),
+        rms_m=float(fit.rms_m),
+        score=float(j.score),
+        reason="",
+        apparent_diameter_m=2.0 * apparent.radius_m if apparent.ok else None,
+        diameter_m=2.0 * j.radius_cone_m if np.isfinite(j.radius_cone_m) else None,
+        method=method,
+        inlier_mask=mask,
+        extras=extras,
+    )

@@ -1,0 +1,283 @@
+"""Coarse search for sphere candidates in a sonar cloud (sonar frame, metres).
+
+Steps, all on a thinned copy of the cloud so that time does not grow with the point count:
+random thinning to at most ``max_points`` points, voxel downsampling (centroid per voxel),
+removal of large planes (seabed, walls, dock faces) by RANSAC, connected-component
+clustering, then a vectorised RANSAC sphere search inside each cluster and a first
+plausibility screen (size, support, purity). The survivors are judged again at full
+resolution by :mod:`calib_core.detect.sonar`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
+from scipy.spatial import cKDTree
+
+from calib_core.detect.sonar_fit import algebraic_sphere
+
+
+@dataclass
+class Candidate:
+    """A coarse sphere hypothesis: centre (m, sonar frame), free radius seen in the
+    downsampled cloud (m), support (voxels on the shell), purity (shell voxels over all
+    voxels near the sphere), the cluster it came from, and a ranking quality in [0, 1]."""
+
+    center_m: np.ndarray
+    radius_m: float
+    support: int
+    purity: float
+    cluster: int
+    quality: float = 0.0
+
+
+def thin_random(points_m: np.ndarray, max_points: int, rng: np.random.Generator) -> np.ndarray:
+    """At most ``max_points`` rows drawn at random (with replacement: duplicates vanish in
+    the voxel step, and drawing is O(max_points))."""
+    if len(points_m) <= max_points:
+        return points_m
+    return points_m[rng.integers(0, len(points_m), max_points)]
+
+
+def voxel_downsample(points_m: np.ndarray, voxel_m: float) -> tuple[np.ndarray, np.ndarray]:
+    """(centroids (M,3), counts (M,)) of the points falling in each cubic voxel."""
+    k = np.floor(points_m / voxel_m).astype(np.int64)
+    k -= k.min(axis=0)
+    span = k.max(axis=0) + 1
+    key = (k[:, 0] * span[1] + k[:, 1]) * span[2] + k[:, 2]
+    _, inv, cnt = np.unique(key, return_inverse=True, return_counts=True)
+    inv = inv.ravel()
+    cen = np.column_stack([np.bincount(inv, weights=points_m[:, j]) for j in range(3)])
+    return cen / cnt[:, None], cnt
+
+
+def _plane_from_3(P3: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    n = np.cross(P3[:, 1] - P3[:, 0], P3[:, 2] - P3[:, 0])
+    nn = np.linalg.norm(n, axis=1)
+    good = nn > 1e-12
+    n = n / np.maximum(nn, 1e-12)[:, None]
+    return n, np.einsum("ij,ij->i", n, P3[:, 0]), good
+
+
+def remove_planes(Q: np.ndarray, min_extent_m: float, thr_m: float, rng: np.random.Generator,
+                  max_planes: int = 4, n_hyp: int = 48, min_frac: float = 0.02,
+                  min_count: int = 60, min_density: float = 0.1) -> tuple[np.ndarray, list]:
+    """Mask of the voxels kept after removing up to ``max_planes`` large planes.
+
+    A plane is removed when it holds at least ``max(min_count, min_frac * len)`` voxels within
+    ``thr_m`` and spreads over more than ``min_extent_m`` (4 x the std along its second
+    principal axis), so a sphere cap is never taken for a plane, and fills at least
+    ``min_density`` of the voxel cells of its area (scattered returns are no plane). Returns (keep mask,
+    [(normal, offset, n_voxels)]).
+    """
+    keep = np.ones(len(Q), bool)
+    planes = []
+    Qk = Q
+    for _ in range(max_planes):
+        idx = np.nonzero(keep)[0]
+        Qk = Q[idx]
+        if len(idx) < max(min_count, 10):
+            break
+        S = Qk if len(idx) <= 2000 else Qk[rng.integers(0, len(idx), 2000)]
+        # half the triples anywhere, half among an anchor's 48 nearest (likelier coplanar)
+        k = min(48, len(S))
+        _, nb = cKDTree(S).query(S[rng.integers(0, len(S), n_hyp // 2)], k=k)
+        loc = np.take_along_axis(nb, np.c_[np.zeros(n_hyp // 2, int),
+                                           rng.integers(1, k, (n_hyp // 2, 2))], axis=1)
+        tri = S[np.vstack([rng.integers(0, len(S), (n_hyp - n_hyp // 2, 3)), loc])]
+        n, d, good = _plane_from_3(tri)
+        cnt = (np.abs(S @ n.T - d) < thr_m).sum(axis=0) * good
+        b = int(np.argmax(cnt))
+        if cnt[b] < max(min_count * len(S) / len(idx), min_frac * len(S)):
+            break
+        nrm, off = n[b], d[b]
+        for _refit in range(2):  # PCA refit on the inliers
+            X = Qk[np.abs(Qk @ nrm - off) < thr_m]
+            if len(X) < 3:
+                break
+            mu = X.mean(axis=0)
+            Xc = X - mu
+            ev, evec = np.linalg.eigh(Xc.T @ Xc / len(X))  # ascending: normal first
+            nrm, off = evec[:, 0], float(mu @ evec[:, 0])
+        inl = idx[np.abs(Qk @ nrm - off) < thr_m]
+        spread = 4.0 * np.sqrt(np.maximum(ev[[2, 1]], 0.0))
+        density = len(inl) * thr_m * thr_m / max(spread[0] * spread[1], 1e-12)
+        if len(inl) < min_count or spread[1] < min_extent_m or density < min_density:
+            break
+        keep[inl] = False
+        planes.append((nrm, off, int(len(inl))))
+    return keep, planes
+
+
+def cluster_points(Q: np.ndarray, link_m: float) -> np.ndarray:
+    """Connected-component labels (M,) of points linked when closer than ``link_m``."""
+    if len(Q) == 0:
+        return np.zeros(0, int)
+    pairs = cKDTree(Q).query_pairs(link_m, output_type="ndarray")
+    g = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(len(Q), len(Q)))
+    return connected_components(g, directed=False)[1]
+
+
+def _batched_spheres(S4: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Spheres through 4-point samples (K,4,3): (centres (K,3), radii (K,), NaN if degenerate)."""
+    o = S4[:, :1, :]
+    X = S4[:, 1:, :] - o  # relative to the first point: sphere |x - c'|^2 = r^2 through 0
+    A = 2.0 * X
+    b = np.einsum("kij,kij->ki", X, X)
+    det = np.linalg.det(A)
+    ok = np.abs(det) > 1e-12
+    A[~ok] = np.eye(3)
+    cp = np.linalg.solve(A, b[..., None])[..., 0]
+    r = np.linalg.norm(cp, axis=1)
+    r[~ok] = np.nan
+    return cp + o[:, 0, :], r
+
+
+def ransac_sphere(X: np.ndarray, r_lo: float, r_hi: float, thr_m: float, reach_m: float,
+                  rng: np.random.Generator, n_hyp: int = 160):
+    """Best sphere (centre, radius, inlier mask) with radius in [r_lo, r_hi] among random
+    4-point samples drawn near random anchors; the centre must lie beyond its inliers as
+    seen from the sonar at the origin. None when no sample is acceptable."""
+    n = len(X)
+    if n < 6:
+        return None
+    anchors = rng.integers(0, n, n_hyp)
+    if n <= 1500:  # 3 random partners within reach of each anchor
+        dist = np.linalg.norm(X[anchors][:, None, :] - X[None, :, :], axis=2)
+        key = np.where(dist < reach_m, rng.random(dist.shape), -1.0)
+        key[np.arange(n_hyp), anchors] = -1.0
+        part = np.argpartition(-key, 3, axis=1)[:, :3]
+        pick = np.c_[anchors, part]
+        pick[np.take_along_axis(key, part, axis=1).min(axis=1) < 0] = anchors[0]
+    else:  # large cluster: partners among the k nearest of the anchor
+        k = min(n, 96)
+        dist, nb = cKDTree(X).query(X[anchors], k=k)
+        col = rng.integers(1, k, (n_hyp, 3))
+        pick = np.c_[anchors, np.take_along_axis(nb, col, axis=1)]
+        pick[np.take_along_axis(dist, col, axis=1).max(axis=1) > reach_m] = anchors[0]
+    C, Rr = _batched_spheres(X[pick])
+    good = np.isfinite(Rr) & (Rr >= r_lo) & (Rr <= r_hi)
+    if not good.any():
+        return None
+    C, Rr = C[good], Rr[good]
+    Xs = X if n <= 3000 else X[rng.choice(n, 3000, replace=False)]
+    dist = np.linalg.norm(Xs[None, :, :] - C[:, None, :], axis=2)
+    cnt = (np.abs(dist - Rr[:, None]) < thr_m).sum(axis=1)
+    for b in np.argsort(-cnt)[:8]:
+        inl = np.abs(np.linalg.norm(X - C[b], axis=1) - Rr[b]) < thr_m
+        if inl.sum() < 6:
+            continue
+        ch = C[b] / np.linalg.norm(C[b])
+        if np.mean((X[inl] - C[b]) @ ch) < -0.2 * Rr[b]:  # shell faces the sonar
+            return C[b], float(Rr[b]), inl
+    return None
+
+
+def polar_about(dirs: np.ndarray, axis: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(angle from ``axis`` (rad), azimuth around it in [0, 2 pi)) of unit directions."""
+    a = np.array([1.0, 0, 0]) if abs(axis[0]) < 0.9 else np.array([0, 1.0, 0])
+    u = np.cross(axis, a)
+    u /= np.linalg.norm(u)
+    v = np.cross(axis, u)
+    x, y = dirs @ u, dirs @ v
+    return np.arctan2(np.hypot(x, y), dirs @ axis), np.arctan2(y, x) + np.pi
+
+
+def disc_coverage(dirs: np.ndarray, axis: np.ndarray, alpha: float) -> float:
+    """Fraction of 12 polar bins (4 inner sectors, 8 outer) of the disc of angular radius
+    ``alpha`` around ``axis`` that hold at least one of the unit directions ``dirs``."""
+    theta, ang = polar_about(dirs, axis)
+    rad = theta / alpha
+    inner = rad < 0.55
+    outer = (rad >= 0.55) & (rad <= 1.05)
+    bins = np.where(inner, (ang / (2 * np.pi) * 4).astype(int) % 4,
+                    4 + (ang / (2 * np.pi) * 8).astype(int) % 8)
+    return len(np.unique(bins[inner | outer])) / 12.0
+
+
+def ring_sectors(dirs: np.ndarray, axis: np.ndarray, alpha: float, width: float) -> int:
+    """How many of 8 sectors of the ring ``alpha < angle <= alpha + width`` around ``axis``
+    hold one of the unit directions ``dirs`` (a sphere hanging free leaves most empty)."""
+    theta, ang = polar_about(dirs, axis)
+    sel = (theta > alpha) & (theta <= alpha + width)
+    return len(np.unique((ang[sel] / (2 * np.pi) * 8).astype(int) % 8))
+
+
+def find_candidates(points_m: np.ndarray, radius_m: float, half_angle_rad: float,
+                    rng: np.random.Generator, max_points: int = 40_000,
+                    max_candidates: int = 6) -> tuple[list[Candidate], dict]:
+    """Sphere candidates in a cloud (sonar frame, m) for a sphere of nominal ``radius_m``.
+
+    Returns (at most ``max_candidates`` candidates, best first, and an info dict of counts).
+    """
+    r = float(radius_m)
+    voxel = float(np.clip(r / 3.0, 0.005, 0.15))
+    P = thin_random(points_m, max_points, rng)
+    Q, _ = voxel_downsample(P, voxel)
+    info = {"n_voxels": int(len(Q)), "voxel_m": voxel}
+    keep, planes = remove_planes(Q, min_extent_m=6.0 * r, thr_m=voxel, rng=rng)
+    info["planes_removed"] = len(planes)
+    Qk = Q[keep]
+    labels = cluster_points(Qk, 2.2 * voxel)
+    ids, counts = np.unique(labels, return_counts=True)
+    order = np.argsort(-counts)
+    cands: list[Candidate] = []
+    min_vox = 6
+    for cid in ids[order]:
+        X = Qk[labels == cid]
+        if len(X) < min_vox:
+            break
+        ext = np.ptp(X, axis=0).max()
+        if ext < 0.6 * r:
+            continue
+        for _attempt in range(2):
+            rng_c = float(np.linalg.norm(X.mean(axis=0)))
+            bloom = rng_c * np.tan(half_angle_rad)
+            thr = max(0.2 * r, 0.75 * voxel)
+            found = ransac_sphere(X, 0.6 * r, 1.5 * r + 2.0 * bloom + 0.01, thr,
+                                  2.5 * r + bloom, rng)
+            if found is None:
+                break
+            c, rf, inl = found
+            if inl.sum() >= 8:  # closed-form refit on the RANSAC shell
+                c2, r2 = algebraic_sphere(X[inl])
+                if np.isfinite(r2) and np.linalg.norm(c2 - c) < 0.5 * r:
+                    c, rf = c2, r2
+            d = np.linalg.norm(X - c, axis=1)
+            shell = np.abs(d - rf) < thr
+            ball = d < rf + thr
+            support = int(shell.sum())
+            purity = support / max(int(ball.sum()), 1)
+            # a cap spreads in two directions; a chain or rope is a line
+            ev = np.linalg.eigvalsh(np.cov(X[shell].T)) if support >= 3 else np.zeros(3)
+            flat_ok = np.sqrt(max(ev[1], 0.0)) >= 0.2 * r
+            cn = float(np.linalg.norm(c))
+            cov_ok = flat_ok and cn > rf and disc_coverage(
+                X[shell] / np.linalg.norm(X[shell], axis=1)[:, None], c / cn,
+                float(np.arcsin(min(rf / cn, 1.0))) + half_angle_rad) >= 0.4
+            if support >= min_vox and cov_ok and 0.6 * r <= rf <= 1.5 * r + 2 * bloom + 0.01:
+                # ranking: support (saturating), purity, and the radius a blooming sphere of
+                # the nominal size would show (about r + range * tan(h))
+                r_exp = r + cn * np.tan(half_angle_rad)
+                quality = (min(1.0, support / 20.0) * purity
+                           * float(np.exp(-0.5 * ((rf - r_exp) / (0.2 * r)) ** 2)))
+                cands.append(Candidate(np.asarray(c, float), float(rf), support, float(purity),
+                                       int(cid), float(quality)))
+            X = X[~(ball | shell)]
+            if len(X) < min_vox:
+                break
+    cands.sort(key=lambda k: -k.quality)
+    info["n_clusters"] = int((counts >= min_vox).sum())
+    info["n_coarse_candidates"] = len(cands)
+    return _dedupe(cands, r)[:max_candidates], info
+
+
+def _dedupe(cands: list[Candidate], r: float) -> list[Candidate]:
+    out: list[Candidate] = []
+    for c in cands:
+        if all(np.linalg.norm(c.center_m - o.center_m) > r for o in out):
+            out.append(c)
+    return out
