@@ -1,0 +1,219 @@
+"""Whole-session calibration: detections -> per-camera and joint solves -> calibration.json content.
+
+:func:`calibrate_session` is what ``sonarcal calibrate`` and the workbench call. Operator
+entries in detections.yaml (accepted / corrected) are used exactly as written, rejected ones
+are left out, and the rest are detected afresh by :func:`calib_core.pipeline.detect_session`
+(unless ``options.detect`` is False, when ``auto`` entries are used as they are).
+
+Frames in the result: ``T_cam_sonar`` maps *true* sonar-frame points to the camera; when a
+range scale ``s`` was estimated, cloud points must be divided by ``s`` first
+(``X_true = X_cloud / s``). With ``s`` fixed at 1 (the default) cloud points map directly.
+"""
+
+from __future__ import annotations
+
+import datetime as _dt
+import math
+from dataclasses import asdict, dataclass, field
+
+import numpy as np
+
+from calib_core import __version__
+from calib_core.errors import SessionError
+from calib_core.results import CALIBRATION_FORMAT
+from calib_core.solve.model import camera_data
+from calib_core.solve.refine import ROBUST_LOSSES, Link
+from calib_core.solve.rig import default_stereo_cov, find_stereo, solve_rig, table_i
+from calib_core.solve.single import CameraSolution, solve_camera
+
+
+@dataclass
+class CalibrateOptions:
+    """Options of :func:`calibrate_session`.
+
+    estimate_scale: also estimate the sonar range scale (needs two cameras and a stereo transform).
+    robust: None, "huber" or "cauchy" (robust loss on each capture's Mahalanobis distance).
+    detect: detect missing / auto entries afresh (False: use auto entries as they are).
+    leave_one_out: compute leave-one-out residuals. joint: solve tied cameras jointly.
+    check_outliers: run RANSAC to find captures that do not fit.
+    """
+
+    estimate_scale: bool = False
+    robust: str | None = None
+    detect: bool = True
+    leave_one_out: bool = True
+    joint: bool = True
+    check_outliers: bool = True
+    seed: int = 0
+    extra: dict = field(default_factory=dict)
+
+
+def _options(options) -> CalibrateOptions:
+    if options is None:
+        return CalibrateOptions()
+    if isinstance(options, CalibrateOptions):
+        o = options
+    elif isinstance(options, dict):
+        known = CalibrateOptions.__dataclass_fields__
+        bad = [k for k in options if k not in known]
+        if bad:
+            raise ValueError(f"unknown calibrate options {bad}")
+        o = CalibrateOptions(**options)
+    else:
+        raise TypeError("options must be a CalibrateOptions, a dict or None")
+    if o.robust not in (None, *ROBUST_LOSSES):
+        raise SessionError(None, f"robust loss must be one of {', '.join(ROBUST_LOSSES)} (got {o.robust!r})")
+    return o
+
+
+def _plain(x):
+    """JSON-ready: numpy -> lists/floats, inf/nan -> None."""
+    if isinstance(x, dict):
+        return {str(k): _plain(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_plain(v) for v in x]
+    if isinstance(x, np.ndarray):
+        return _plain(x.tolist())
+    if isinstance(x, (np.bool_, bool)):
+        return bool(x)
+    if isinstance(x, (np.integer, int)):
+        return int(x)
+    if isinstance(x, (np.floating, float)):
+        return float(x) if math.isfinite(x) else None
+    return x
+
+
+def sigmas(cov6: np.ndarray) -> dict:
+    """1- and 3-sigma per axis: rotation (deg, about the camera axes) and translation (mm)."""
+    d = np.sqrt(np.maximum(np.diag(np.asarray(cov6, float)), 0))
+    r, t = np.degrees(d[:3]), 1000 * d[3:]
+    return {"sigma_1": {"rotation_deg": r, "translation_mm": t},
+            "sigma_3": {"rotation_deg": 3 * r, "translation_mm": 3 * t}}
+
+
+def _stereo_cov(session, key: str) -> tuple[np.ndarray, bool]:
+    """Covariance of a stereo transform from session.yaml's optional ``stereo_covariance``
+    mapping (same keys as ``stereo``), else the assumed default. Returns (cov, assumed)."""
+    raw = (session.raw or {}).get("stereo_covariance") or {}
+    if isinstance(raw, dict) and key in raw:
+        try:
+            C = np.asarray(raw[key], float).reshape(6, 6)
+        except (TypeError, ValueError):
+            raise SessionError(session.manifest_path, f"stereo_covariance.{key} must be a 6x6 matrix") from None
+        C = 0.5 * (C + C.T)
+        if not np.isfinite(C).all() or np.any(np.linalg.eigvalsh(C) <= 0):
+            raise SessionError(session.manifest_path, f"stereo_covariance.{key} must be positive definite")
+        return C, False
+    return default_stereo_cov(), True
+
+
+def _camera_entry(sol: CameraSolution, skipped: dict, intrinsics_rel: str) -> dict:
+    return {
+        "T_cam_sonar": sol.T_cam_sonar, "rms_reprojection_px": sol.rms_px, "captures_used": sol.captures_used,
+        "covariance": sol.cov, "solution": "independent", **sigmas(sol.cov),
+        "chi2": sol.chi2, "dof": sol.dof, "variance_factor": sol.variance_factor,
+        "independent": {"T_cam_sonar": sol.T_cam_sonar, "covariance": sol.cov, "rms_reprojection_px": sol.rms_px,
+                        "variance_factor": sol.variance_factor},
+        "residuals": sol.rows, "outliers": sol.outliers, "skipped": skipped, "intrinsics": intrinsics_rel,
+        **({"covariance_with_scale": sol.cov_scale} if sol.cov_scale is not None else {}),
+    }
+
+
+def calibrate_session(session, detections: dict, options=None, progress=None) -> dict:
+    """Calibrate every camera of ``session`` to the sonar; return the calibration.json content.
+
+    Raises SessionError (naming detections.yaml or session.yaml) when no camera has enough
+    usable correspondences, or for bad options / stereo covariances.
+    """
+    from calib_core import pipeline
+    from calib_core.detections import detections_path
+
+    opts = _options(options)
+    dets = pipeline.detect_session(session, detections, progress=progress) if opts.detect else detections
+    warnings: list[str] = []
+    sols: dict[str, CameraSolution] = {}
+    entries: dict[str, dict] = {}
+    errors: list[str] = []
+    cam_names = list(session.cameras)
+    for k, cam in enumerate(cam_names):
+        if progress:
+            progress(k, len(cam_names), f"solving {cam}")
+        corr = pipeline.correspondences(session, dets, cam)
+        model = session.camera_model(cam)
+        try:
+            cd = camera_data(cam, model, corr.capture_ids, corr.uv_px, corr.cov_uv_px2, corr.X_sonar_m, corr.cov_X_m2)
+            sol = solve_camera(cd, estimate_scale=opts.estimate_scale and len(cam_names) == 1, robust=opts.robust,
+                               loo=opts.leave_one_out, check_outliers=opts.check_outliers, seed=opts.seed)
+        except SessionError as e:
+            why = "; ".join(f"{c}: {r}" for c, r in corr.skipped.items())
+            errors.append(e.problem + (f" (skipped: {why})" if why else ""))
+            continue
+        sols[cam] = sol
+        warnings += sol.warnings
+        rel = str(session.cameras[cam].intrinsics_path.relative_to(session.root))
+        entries[cam] = _camera_entry(sol, corr.skipped, rel)
+    if not sols:
+        raise SessionError(detections_path(session), "no camera could be calibrated: " + " | ".join(errors))
+    warnings += [f"{e}; this camera was not calibrated" for e in errors]
+
+    scale = {"value": 1.0, "sigma": None, "estimated": False,
+             "note": "not requested (range scale fixed at 1)" if not opts.estimate_scale else ""}
+    if opts.estimate_scale and len(cam_names) == 1:
+        only = next(iter(sols.values()))
+        scale.update(value=only.scale, sigma=only.scale_sigma, estimated=only.scale_sigma is not None, note=only.scale_note)
+    joint = None
+    solved = [c for c in cam_names if c in sols]
+    if len(solved) >= 2 and opts.joint:
+        ref = solved[0]
+        links, stereo_info = {}, {}
+        for c in solved[1:]:
+            T = find_stereo(session.stereo, ref, c)
+            if T is not None:
+                cov, assumed = _stereo_cov(session, f"T_{c}_{ref}")
+                links[c] = Link(T, cov)
+                stereo_info[c] = {"T_cam_ref": T, "covariance": cov, "covariance_assumed": assumed}
+        if links:
+            if progress:
+                progress(len(cam_names), len(cam_names) + 1, "joint solve")
+            rs = solve_rig(sols, links, ref, estimate_scale=opts.estimate_scale, robust=opts.robust)
+            warnings += rs.warnings
+            if any(v["covariance_assumed"] for v in stereo_info.values()):
+                warnings.append("joint solve: no stereo_covariance in session.yaml; assumed 0.05 deg / 1 mm (1-sigma) "
+                                "per axis for the stereo transform")
+            joint = {"reference": ref, "cameras": rs.cameras, "stereo": stereo_info,
+                     "T_cam_ref_solved": rs.T_cam_ref, "rms_reprojection_px": rs.rms_px, "chi2": rs.chi2, "dof": rs.dof,
+                     "variance_factor": rs.variance_factor, "mahalanobis": rs.mahalanobis}
+            for c in rs.cameras:
+                entries[c].update({"T_cam_sonar": rs.T_cam_sonar[c], "covariance": rs.cov[c], "solution": "joint",
+                                   "rms_reprojection_px": rs.rms_px[c], **sigmas(rs.cov[c])})
+                if c in rs.cov_with_scale:
+                    entries[c]["covariance_with_scale"] = rs.cov_with_scale[c]
+            scale.update(value=rs.scale, sigma=rs.scale_sigma, estimated=rs.scale_sigma is not None, note=rs.scale_note)
+        elif opts.estimate_scale:
+            scale["note"] = "not observable: no stereo transform between the cameras in session.yaml"
+    elif opts.estimate_scale and len(cam_names) > 1:
+        scale["note"] = "not observable: the joint solve needs two calibrated cameras and their stereo transform"
+    if opts.estimate_scale and not scale["estimated"] and not any("range scale" in w for w in warnings):
+        warnings.append(f"range scale {scale['note']}; keeping it at 1")
+
+    tab = None
+    if len(solved) >= 2:
+        a, b = solved[0], solved[1]
+        tab = table_i({c: sols[c].T_cam_sonar for c in (a, b)}, a, b, find_stereo(session.stereo, a, b),
+                      session.measured_m, {c: sols[c].cov for c in (a, b)})
+        tab["note"] = "independent per-camera solves, as in the paper"
+    if progress:
+        progress(1, 1, "done")
+    result = {
+        "format": CALIBRATION_FORMAT,
+        "session": session.name,
+        "tool": {"name": "sonarcal", "version": __version__},
+        "created": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
+        "options": {k: v for k, v in asdict(opts).items() if k != "extra"},
+        "cameras": entries,
+        "range_scale": scale,
+        "joint": joint,
+        "table_i": tab,
+        "warnings": warnings,
+    }
+    return _plain(result)

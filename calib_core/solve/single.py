@@ -1,0 +1,127 @@
+"""One camera to the sonar: RANSAC start, ML refinement, range scale check, diagnostics."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from calib_core.solve.diagnostics import capture_rows, leave_one_out
+from calib_core.solve.model import CameraData, RigState, check_count, per_camera_stats
+from calib_core.solve.pnp import layout_warnings, ransac_pose
+from calib_core.solve.refine import RigProblem, refine
+
+MAX_SCALE_SIGMA = 0.01  # a range scale known worse than 1 % is not worth estimating
+
+
+@dataclass
+class CameraSolution:
+    """A camera's calibration to the sonar.
+
+    Attributes:
+        name: camera name; data: its correspondences.
+        T_cam_sonar: 4x4 (maps true sonar-frame points, i.e. cloud points / scale, to the camera).
+        cov: 6x6 covariance (rotation vector rad in the camera frame, then translation m), already
+            multiplied by ``max(1, variance_factor)`` so over-optimistic detection covariances
+            do not make the result look better than it is.
+        cov_scale: 7x7 (pose, then scale) when the scale was estimated, else None.
+        scale, scale_sigma: range scale and its 1-sigma (None when not estimated).
+        scale_note: why the scale was or was not estimated.
+        used: (N,) bool rows used in the final solve.
+        rms_px: RMS reprojection error of the used rows (px); chi2, dof, variance_factor.
+        rows: per-capture diagnostics (see :func:`calib_core.solve.diagnostics.capture_rows`).
+        warnings: layout and data warnings.
+    """
+
+    name: str
+    data: CameraData
+    T_cam_sonar: np.ndarray
+    cov: np.ndarray
+    cov_scale: np.ndarray | None
+    scale: float
+    scale_sigma: float | None
+    scale_note: str
+    used: np.ndarray
+    rms_px: float
+    chi2: float
+    dof: int
+    variance_factor: float
+    rows: list = field(default_factory=list)
+    warnings: list = field(default_factory=list)
+
+    @property
+    def captures_used(self) -> list[str]:
+        return [c for c, u in zip(self.data.capture_ids, self.used) if u]
+
+    @property
+    def outliers(self) -> list[dict]:
+        return [{"capture": r["capture"], "used": r["used"], "reasons": [f["reason"] for f in r["flags"]],
+                 "kinds": [f["kind"] for f in r["flags"]]} for r in self.rows if r["flags"]]
+
+
+def scale_observability(problem: RigProblem, state: RigState, max_sigma: float = MAX_SCALE_SIGMA):
+    """(observable, sigma of the scale, note) from the information matrix with the scale freed."""
+    from calib_core.solve.refine import _weights_for, covariance_from_jacobian, jacobian
+
+    Ws, _ = _weights_for(problem, state, None, 1.0)
+    cov, eigmin = covariance_from_jacobian(jacobian(problem, state, Ws))
+    sigma = math.sqrt(max(cov[-1, -1], 0.0))
+    if eigmin < 1e-9:
+        if len(problem.cams) == 1:
+            return False, math.inf, ("not observable from one camera alone: scaling the sonar cloud about its "
+                                     "origin looks the same to the camera as a longer or shorter camera-sonar "
+                                     "translation. Estimate it jointly with a second camera and the stereo transform")
+        return False, math.inf, "not observable from this data (the information matrix is singular)"
+    if sigma > max_sigma:
+        return False, sigma, (f"too weakly observable (1-sigma {100 * sigma:.2f} % > {100 * max_sigma:.1f} %): "
+                              f"spread the sphere over a wider range of distances and the whole shared view")
+    return True, sigma, f"estimated (1-sigma {100 * sigma:.3f} %)"
+
+
+def solve_camera(cd: CameraData, estimate_scale: bool = False, robust: str | None = None, loo: bool = True,
+                 check_outliers: bool = True, seed: int = 0, progress=None) -> CameraSolution:
+    """Calibrate one camera to the sonar from its correspondences (see the package doc).
+
+    Raises SessionError when fewer than 4 correspondences are usable.
+    """
+    check_count(cd.name, len(cd))
+    start = ransac_pose(cd, seed=seed, check_outliers=check_outliers)
+    used = start.inliers.copy()
+    check_count(cd.name, int(used.sum()), "captures that agree with each other")
+    warnings = list(start.warnings)
+    state0 = RigState(start.T_cam_sonar, {cd.name: np.eye(4)})
+    prob = RigProblem([cd], [used])
+    res = refine(prob, state0, robust=robust)
+    cov_scale, scale_sigma, scale_note = None, None, "not requested (range scale fixed at 1)"
+    if estimate_scale:
+        prob_s = RigProblem([cd], [used], estimate_scale=True)
+        ok, sig, scale_note = scale_observability(prob_s, res.state)
+        if ok:
+            res_s = refine(prob_s, res.state, robust=robust)
+            res, prob = res_s, prob_s
+            scale_sigma = math.sqrt(res.cov[-1, -1] * max(1.0, res.variance_factor))
+        else:
+            warnings.append(f"{cd.name}: range scale {scale_note}; keeping it at 1")
+    T = res.state.T_ref_sonar
+    vf = res.variance_factor if res.dof > 0 else 1.0
+    inflate = max(1.0, vf)
+    cov_full = res.cov * inflate
+    cov6 = cov_full[:6, :6]
+    if prob.estimate_scale:
+        cov_scale = cov_full
+    r_px, _, _, _, _ = per_camera_stats(cd, T, res.state.scale)
+    rms = float(np.sqrt(np.mean(np.sum(r_px[used] ** 2, axis=1))))
+    warnings += layout_warnings(cd, used, T)
+    sig_r = np.degrees(np.sqrt(np.diag(cov6)[:3]))
+    sig_t = 1000 * np.sqrt(np.diag(cov6)[3:])
+    if 3 * sig_r.max() > 1.0 or 3 * sig_t.max() > 30.0:
+        warnings.append(f"{cd.name}: the pose is uncertain (3-sigma up to {3 * sig_r.max():.2f} deg, "
+                        f"{3 * sig_t.max():.0f} mm): add captures spread over the view and over distance")
+    if res.dof > 0 and vf > 4.0:
+        warnings.append(f"{cd.name}: residuals are {math.sqrt(vf):.1f}x what the detection uncertainties predict; "
+                        f"the covariance was inflated to match (check intrinsics, detections, target motion)")
+    loo_res = leave_one_out(cd, used, T, robust=robust, progress=progress) if loo else {}
+    rows = capture_rows(cd, used, T, start.mahalanobis2, start.gate, loo_res, res.state.scale, start.miss_m)
+    return CameraSolution(cd.name, cd, T, cov6, cov_scale, res.state.scale, scale_sigma, scale_note, used, rms,
+                          res.chi2, res.dof, vf, rows, warnings)
