@@ -1,0 +1,161 @@
+"""Per-capture pictures and numbers for the HTML report (no HTML here).
+
+For each capture: the detection thumbnails (image crop with the detected ellipse/centre and
+the reprojected sonar centre; the sonar cloud around the detected centre), the segmentation
+overlay (the paper's Fig. 3), the coloured cloud (Figs. 4 and 5) and the reprojection
+residual per camera. Problems with one file (missing image, unreadable cloud) are recorded
+in ``CaptureView.problems`` and the rest of the report goes on.
+
+Range scale: calibration.json's ``T_cam_sonar`` maps *true* sonar points; cloud points are
+divided by ``range_scale.value`` first (1 when absent).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from calib_core import fusion
+from calib_core.errors import SessionError
+from calib_core.geometry import look_at_T_cam_world
+from calib_core.camera import CameraModel
+from calib_core.report_render import colourise, crop_thumbnail, data_uri, fit_width, oblique_view, render_points
+
+
+UNCOLOURED = (235, 140, 50)  # orange: points no camera sees (or hidden), in the coloured-cloud renders
+
+
+@dataclass
+class ReportOptions:
+    """Knobs of the report. ``mask_radius_px`` None: 0.6 % of the image width (~12 px at 1080p)."""
+
+    mask_radius_px: float | None = None
+    overlay_width_px: int = 960
+    thumb_px: int = 200
+    render_size_px: tuple[int, int] = (800, 500)
+    max_render_points: int = 400_000
+    jpeg_quality: int = 82
+
+
+@dataclass
+class CaptureView:
+    """What the report shows for one capture. Images are data URIs (or None)."""
+
+    id: str
+    n_points: int | None = None
+    thumbs: dict[str, str] = field(default_factory=dict)       # sensor -> thumbnail
+    overlays: dict[str, str] = field(default_factory=dict)     # cam -> segmentation overlay
+    coloured_cloud: str | None = None
+    coloured_fraction: float | None = None
+    reprojected_uv: dict[str, list] = field(default_factory=dict)
+    residual_px: dict[str, list] = field(default_factory=dict)  # cam -> [du, dv] (reprojected - detected)
+    problems: list[str] = field(default_factory=list)
+
+
+def calibrated_T(calibration: dict | None, cam: str) -> np.ndarray | None:
+    c = ((calibration or {}).get("cameras") or {}).get(cam)
+    if not isinstance(c, dict) or c.get("T_cam_sonar") is None:
+        return None
+    T = np.asarray(c["T_cam_sonar"], float)
+    return T if T.shape == (4, 4) and np.isfinite(T).all() else None
+
+
+def range_scale(calibration: dict | None) -> float:
+    s = (calibration or {}).get("range_scale")
+    v = s.get("value") if isinstance(s, dict) else s
+    return float(v) if isinstance(v, (int, float)) and np.isfinite(v) and v > 0 else 1.0
+
+
+def _centre(entry: dict | None):
+    if not isinstance(entry, dict) or entry.get("status") == "rejected" or entry.get("center") is None:
+        return None
+    return np.asarray(entry["center"], float)
+
+
+def sonar_thumbnail(points_true_m: np.ndarray, centre_m: np.ndarray, radius_m: float, size_px: int) -> np.ndarray:
+    """The cloud within 3 sphere radii of the detected centre, seen from the sonar's side,
+    coloured by range, with the fitted sphere's outline."""
+    P = points_true_m[np.linalg.norm(points_true_m - centre_m, axis=1) < 3 * radius_m]
+    dist = float(np.linalg.norm(centre_m))
+    view_dir = centre_m / dist if dist > 1e-6 else np.array([1.0, 0.0, 0.0])
+    up = np.array([0.0, 0.0, 1.0]) if abs(view_dir[2]) < 0.9 else np.array([0.0, 1.0, 0.0])
+    eye = centre_m - view_dir * 8 * radius_m
+    T_view = look_at_T_cam_world(eye, centre_m, up)
+    f = size_px / 2 * 8 / 3.2  # 3.2 radii from the centre to the border
+    cam = CameraModel(size_px, size_px, [[f, 0, size_px / 2 - 0.5], [0, f, size_px / 2 - 0.5], [0, 0, 1]])
+    img = render_points(P, colourise(np.linalg.norm(P, axis=1)) if len(P) else np.zeros((0, 3), np.uint8), cam,
+                        T_view, splat_radius_px=2, background=(20, 20, 30), depth_shading=0.0)
+    r_px = f * radius_m / (8 * radius_m)
+    fusion.draw_marker(img, (size_px / 2 - 0.5, size_px / 2 - 0.5), (255, 255, 255), "circle", size_px=r_px)
+    fusion.draw_marker(img, (size_px / 2 - 0.5, size_px / 2 - 0.5), (255, 255, 255), "cross", size_px=6)
+    return img
+
+
+def capture_view(session, cap, detections: dict, calibration: dict | None, models: dict[str, CameraModel],
+                 opts: ReportOptions) -> CaptureView:
+    """Everything the report shows for capture ``cap`` (a session Capture)."""
+    from calib_core.io.clouds import load_cloud
+    from calib_core.io.images import load_image
+
+    view = CaptureView(cap.id)
+    dets = detections.get(cap.id, {})
+    s = range_scale(calibration)
+    try:
+        cloud = load_cloud(cap.cloud_path)
+        P = cloud.points_m / s
+        view.n_points = len(P)
+    except SessionError as e:
+        P = None
+        view.problems.append(str(e))
+    sonar_c = _centre(dets.get("sonar"))
+    if P is not None and sonar_c is not None:
+        X = sonar_c / s
+        view.thumbs["sonar"] = data_uri(sonar_thumbnail(P, X, session.sphere_radius_m, opts.thumb_px), "png")
+    images, views = {}, []
+    for cam, path in cap.image_paths.items():
+        model = models.get(cam)
+        try:
+            img = load_image(path)
+        except SessionError as e:
+            view.problems.append(str(e))
+            continue
+        if model is None or img.shape[:2] != (model.height_px, model.width_px):
+            view.problems.append(f"{path}: image size does not match the intrinsics of {cam}" if model else
+                                 f"{cam}: intrinsics unavailable")
+            continue
+        images[cam] = img
+        T = calibrated_T(calibration, cam)
+        entry = dets.get(cam) or {}
+        det_c = _centre(entry)
+        reproj = None
+        if T is not None and sonar_c is not None:
+            uv, _, ok = fusion.project_cloud((sonar_c / s)[None], T, model)
+            if ok[0]:
+                reproj = model.project((T[:3, :3] @ (sonar_c / s) + T[:3, 3])[None])[0]
+                view.reprojected_uv[cam] = [float(v) for v in reproj]
+                if det_c is not None:
+                    view.residual_px[cam] = [float(v) for v in reproj - det_c]
+        drawn = fusion.draw_detection(img, det_c, entry.get("ellipse_px"), reproj, labels=False)
+        half = 2.2 * float(entry["radius_px"]) if isinstance(entry.get("radius_px"), (int, float)) else 0.06 * model.width_px
+        view.thumbs[cam] = data_uri(crop_thumbnail(drawn, det_c if det_c is not None else reproj, half, opts.thumb_px))
+        if T is not None and P is not None:
+            uv, _, ok = fusion.project_cloud(P, T, model)
+            r = opts.mask_radius_px if opts.mask_radius_px is not None else 0.006 * model.width_px
+            mask = fusion.segmentation_mask(model, uv, r, ok)
+            over = fusion.draw_detection(fusion.overlay(img, mask, (40, 255, 80), 0.4), det_c, entry.get("ellipse_px"),
+                                         reproj)
+            view.overlays[cam] = data_uri(fit_width(over, opts.overlay_width_px), quality=opts.jpeg_quality)
+            views.append(fusion.CameraView(cam, img, model, T))
+    if views and P is not None:
+        colours, coloured, _ = fusion.colour_cloud_multi(P, views, fallback=UNCOLOURED)
+        view.coloured_fraction = float(coloured.mean()) if len(coloured) else 0.0
+        keep = np.arange(len(P))
+        if len(P) > opts.max_render_points:
+            keep = np.random.default_rng(0).choice(len(P), opts.max_render_points, replace=False)
+        w, h = opts.render_size_px
+        focus = P[coloured] if coloured.sum() >= 10 else P[keep]  # frame what the cameras see
+        vcam, T_view = oblique_view(focus, views[0].T_cam_sonar, w, h)
+        img = render_points(P[keep], colours[keep], vcam, T_view, splat_radius_px=2 if len(keep) < 50_000 else 1)
+        view.coloured_cloud = data_uri(img, quality=opts.jpeg_quality)
+    return view
