@@ -1,0 +1,215 @@
+"""Image panels: per camera, the selected capture's image with its overlays.
+
+Each overlay (calib_core.fusion): the detected ellipse and centre, the reprojected sonar
+sphere centre and the reprojected sonar cloud as a segmentation mask (adjustable radius
+and opacity). It is shown twice: in the GUI panel, and in the 3D scene on a board inside
+the camera's frustum that reports clicks; a click on the board corrects the image
+detection (refit near the click, or the click itself).
+
+The board lies in the camera's image plane at a chosen depth, ignoring lens distortion
+(a display approximation: pixels are read from the board, so clicks are exact).
+"""
+
+from __future__ import annotations
+
+from collections import OrderedDict
+
+import cv2
+import numpy as np
+
+from app.common import client_tag, guarded, notify, pose_wxyz_position
+from calib_core import fusion
+from calib_core.pipeline import CLICK_SIGMA_IMAGE_PX, refit_image
+
+MASK_RGB = (0, 255, 0)
+BOARD_MAX_WIDTH = 1280
+PANEL_MAX_WIDTH = 960
+
+
+def downscale(img: np.ndarray, max_width: int) -> np.ndarray:
+    if img.shape[1] <= max_width:
+        return img
+    f = max_width / img.shape[1]
+    return cv2.resize(img, (max_width, max(1, int(round(img.shape[0] * f)))), interpolation=cv2.INTER_AREA)
+
+
+class ImagePanels:
+    def __init__(self, wb):
+        self.wb = wb
+        gui = wb.server.gui
+        with wb.tab_review:
+            self.folder = gui.add_folder("Images", order=1000)
+        with self.folder:
+            self.show_mask = gui.add_checkbox("Reprojected cloud mask", True)
+            self.mask_radius = gui.add_slider("Mask radius (px)", min=0, max=40, step=1, initial_value=3)
+            self.mask_opacity = gui.add_slider("Mask opacity", min=0.0, max=1.0, step=0.05, initial_value=0.45)
+            self.refit = gui.add_checkbox("Refit near a click", True,
+                                          hint="Off: the clicked pixel itself becomes the corrected centre")
+            self.click_radius = gui.add_slider("Click radius (px)", min=5, max=400, step=1, initial_value=60,
+                                               hint="Search radius for the refit around a click")
+            self.board_depth = gui.add_slider("Image board distance (m)", min=0.1, max=3.0, step=0.05, initial_value=0.5)
+        for h in (self.show_mask, self.mask_radius, self.mask_opacity, self.board_depth):
+            h.on_update(lambda _e: wb.refresher.mark("overlay"))
+        self.panels: dict = {}  # cam -> (gui image, view button)
+        self.boards: dict = {}
+        self._masks: OrderedDict = OrderedDict()
+        for kind in ("selection", "detections", "calibration", "overlay"):
+            wb.refresher.on(kind, self.refresh)
+
+    # ---- building ----------------------------------------------------------
+    def rebuild(self) -> None:
+        for img, btn in self.panels.values():
+            img.remove()
+            btn.remove()
+        self.panels.clear()
+        self._masks.clear()
+        gui = self.wb.server.gui
+        blank = np.full((90, 160, 3), 40, np.uint8)
+        with self.folder:
+            for cam in self.wb.state.session.cameras:
+                img = gui.add_image(blank, label=cam, format="jpeg", jpeg_quality=85)
+                btn = gui.add_button(f"View through {cam}", icon="camera",
+                                     hint="Look through the camera at its image board; click the sphere centre to correct it")
+                btn.on_click(guarded(self.wb.server)(lambda e, cam=cam: self.view_through(e.client, cam)))
+                self.panels[cam] = (img, btn)
+
+    # ---- rendering -----------------------------------------------------------
+    def mask(self, cid: str, cam: str, radius_px: float):
+        """Reprojected-cloud segmentation mask (H,W) bool, cached per calibration and radius."""
+        st = self.wb.state
+        cal = st.T_cam_sonar(cam)
+        if cal is None:
+            return None
+        key = (cid, cam, st.cal_version, float(radius_px))
+        if key in self._masks:
+            return self._masks[key]
+        T, s = cal
+        model = st.camera(cam)
+        uv, _depth, valid = fusion.project_cloud(st.cloud(cid).points_m / s, T, model)
+        m = fusion.segmentation_mask(model, uv, radius_px, valid)
+        self._masks[key] = m
+        while len(self._masks) > 8:
+            self._masks.popitem(last=False)
+        return m
+
+    def reprojected_centre(self, cid: str, cam: str):
+        """Raw pixel of the sonar sphere centre through the current calibration, or None."""
+        st = self.wb.state
+        cal, son = st.T_cam_sonar(cam), st.entry(cid, "sonar") or {}
+        if cal is None or son.get("center") is None:
+            return None
+        T, s = cal
+        uv, _d, valid = fusion.project_cloud(np.asarray([son["center"]], float) / s, T, st.camera(cam))
+        return uv[0] if valid[0] else None
+
+    def render(self, cid: str, cam: str) -> np.ndarray | None:
+        """The full-resolution overlay image of one camera for one capture (None: no image)."""
+        st = self.wb.state
+        img = st.image(cid, cam)
+        if img is None:
+            return None
+        base = img
+        if self.show_mask.value and float(self.mask_opacity.value) > 0:
+            m = self.mask(cid, cam, float(self.mask_radius.value))
+            if m is not None:
+                base = fusion.overlay(img, m, MASK_RGB, float(self.mask_opacity.value))
+        e = st.entry(cid, cam) or {}
+        centre = e.get("center") if e.get("status") != "rejected" else None
+        return fusion.draw_detection(base, centre, e.get("ellipse_px"), self.reprojected_centre(cid, cam))
+
+    def board_geometry(self, cam: str) -> tuple[np.ndarray, float, float]:
+        """(T_cam_board 4x4, render width m, render height m) of a camera's image board."""
+        model = self.wb.state.camera(cam)
+        d = float(self.board_depth.value)
+        W, H = model.width_px, model.height_px
+        T = np.eye(4)
+        T[:3, 3] = [d * ((W - 1) / 2 - model.cx) / model.fx, d * ((H - 1) / 2 - model.cy) / model.fy, d]
+        return T, d * W / model.fx, d * H / model.fy
+
+    def refresh(self) -> None:
+        st = self.wb.state
+        if st.session is None or not self.panels:
+            return
+        cid = st.selected
+        sc = self.wb.server.scene
+        for cam, (panel, _btn) in self.panels.items():
+            out = self.render(cid, cam)
+            board = self.boards.get(cam)
+            if out is None:
+                panel.visible = False
+                if board is not None:
+                    board.visible = False
+                continue
+            panel.label = f"{cam}: {cid}"
+            panel.image = downscale(out, PANEL_MAX_WIDTH)
+            panel.visible = True
+            T, rw, rh = self.board_geometry(cam)
+            wxyz, pos = pose_wxyz_position(T)
+            small = downscale(out, BOARD_MAX_WIDTH)
+            if board is None:
+                board = sc.add_image(f"/cams/{cam}/board", small, rw, rh, format="jpeg", jpeg_quality=90,
+                                     wxyz=wxyz, position=pos, cast_shadow=False, receive_shadow=False)
+                board.on_click(guarded(self.wb.server, "Correction failed")(lambda e, cam=cam: self.on_board_click(e, cam)))
+                self.boards[cam] = board
+            else:
+                board.image = small
+                board.render_width, board.render_height = rw, rh
+                board.position = pos
+            board.visible = True
+
+    # ---- interaction ----------------------------------------------------------
+    def pixel_from_ray(self, cam: str, ray_origin, ray_direction):
+        """Raw pixel (u, v) where a world ray meets camera ``cam``'s image board, or None."""
+        model = self.wb.state.camera(cam)
+        T_cam_board, rw, rh = self.board_geometry(cam)
+        T_world_board = self.wb.scene3d.camera_pose(cam) @ T_cam_board
+        R, t = T_world_board[:3, :3], T_world_board[:3, 3]
+        o = R.T @ (np.asarray(ray_origin, float) - t)
+        d = R.T @ np.asarray(ray_direction, float)
+        if abs(d[2]) < 1e-12:
+            return None
+        hit = o - (o[2] / d[2]) * d
+        u = (hit[0] / rw + 0.5) * model.width_px - 0.5
+        v = (hit[1] / rh + 0.5) * model.height_px - 0.5
+        if not (-0.5 <= u <= model.width_px - 0.5 and -0.5 <= v <= model.height_px - 0.5):
+            return None
+        return float(u), float(v)
+
+    def on_board_click(self, event, cam: str) -> None:
+        uv = self.pixel_from_ray(cam, event.ray_origin, event.ray_direction)
+        if uv is None:
+            raise ValueError("the click missed the image")
+        cid = self.wb.state.selected
+        entry = self.correct_click(cid, cam, uv, client_tag(event))
+        how = "refit" if entry.get("refit") else "clicked centre"
+        c = entry["center"]
+        notify(self.wb.server, event.client, f"{cid} {cam} corrected",
+               f"{how} at ({c[0]:.1f}, {c[1]:.1f}) px; saved to detections.yaml", color="green", seconds=4)
+
+    def correct_click(self, cid: str, cam: str, uv, client: str) -> dict:
+        """Correct camera ``cam``'s detection in capture ``cid`` from a click at raw pixel ``uv``."""
+        st = self.wb.state
+        if self.refit.value:
+            entry = refit_image(st.data, cid, cam, uv, float(self.click_radius.value))
+        else:
+            s2 = CLICK_SIGMA_IMAGE_PX ** 2
+            entry = {"center": [float(uv[0]), float(uv[1])], "cov_px2": [s2, 0.0, 0.0, s2],
+                     "method": "operator-click", "refit": False, "radius_px": float(self.click_radius.value)}
+        st.correct(cid, cam, entry, client, action="click")
+        return st.entry(cid, cam)
+
+    def view_through(self, client, cam: str) -> None:
+        """Put ``client``'s viewpoint in front of ``cam``'s image board, filling the view."""
+        T_cam_board, rw, rh = self.board_geometry(cam)
+        T_world_cam = self.wb.scene3d.camera_pose(cam)
+        R = T_world_cam[:3, :3]
+        centre = T_world_cam[:3, :3] @ T_cam_board[:3, 3] + T_world_cam[:3, 3]
+        d = T_cam_board[2, 3]
+        eye = centre - R[:, 2] * d
+        aspect = float(client.camera.aspect or 1.0)
+        half = max(rh, rw / max(aspect, 1e-3)) / (2 * d) * 1.06  # fit both ways, 6 % margin
+        with client.atomic():
+            client.camera.up_direction = -R[:, 1]
+            client.camera.position = eye
+            client.camera.look_at = centre
+            client.camera.fov = float(2 * np.arctan(half))

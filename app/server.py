@@ -1,0 +1,159 @@
+"""The workbench server: one viser server, one shared :class:`WorkbenchState`, the panels.
+
+``server.scene`` and ``server.gui`` are shared by every browser, so all clients see the
+same session, selection and results; per-client things (the viewpoint, the pick mode,
+notifications) go through ``client``. Every callback is guarded: a bad action or file
+shows a notification in the page and the server carries on.
+"""
+
+from __future__ import annotations
+
+import logging
+import tempfile
+from pathlib import Path
+
+import viser
+
+from app.common import JobRunner, Refresher, error_text, notify
+from app.state import WorkbenchState
+
+log = logging.getLogger("sonarcal.app")
+
+
+class Workbench:
+    """A running workbench.
+
+    Args:
+        session_path: session folder to open at start (optional).
+        host: interface to bind; 127.0.0.1 (this machine only) unless told otherwise.
+        port: TCP port; 0 picks a free one (see :attr:`port`).
+        allowed_roots: folders the browser's path field may open (default: the session's
+            parent folder and the current folder); uploads always go to ``uploads_dir``.
+    """
+
+    def __init__(self, session_path=None, host: str = "127.0.0.1", port: int = 8080,
+                 allowed_roots=None, uploads_dir=None, verbose: bool = False):
+        from app.fused import FusedPanel
+        from app.images import ImagePanels
+        from app.review import ReviewPanel
+        from app.scene3d import Scene3D
+        from app.session_panel import SessionPanel
+        from app.solve_panel import SolvePanel
+
+        self.uploads_dir = Path(uploads_dir) if uploads_dir else Path(tempfile.mkdtemp(prefix="sonarcal-uploads-"))
+        if allowed_roots is None:
+            allowed_roots = [Path.cwd()] + ([Path(session_path).resolve().parent] if session_path else [])
+        self.state = WorkbenchState(allowed_roots=list(allowed_roots) + [self.uploads_dir])
+        self.server = viser.ViserServer(host=host, port=port, label="sonarcal workbench", verbose=verbose)
+        self.server.gui.configure_theme(control_width="large", dark_mode=False, show_share_button=False)
+        self.server.gui.main_panel.dock_right()  # beside the 3D view, so the view is never covered
+        self.refresher = Refresher(on_error=lambda kind, e: notify(self.server, None, f"Display of {kind} failed", error_text(e)))
+        self.jobs = JobRunner(on_progress=self._progress, on_error=self._job_error)
+
+        gui = self.server.gui
+        self.title = gui.add_markdown("**sonarcal workbench**: no session open")
+        self.progress_label = gui.add_markdown("", visible=False)
+        self.progress = gui.add_progress_bar(0.0, visible=False, animated=True)
+        tabs = gui.add_tab_group()
+        self.tab_review = tabs.add_tab("Review", icon=viser.Icon.LIST_CHECK)
+        self.tab_solve = tabs.add_tab("Solve", icon=viser.Icon.MATH_FUNCTION)
+        self.tab_view = tabs.add_tab("View", icon=viser.Icon.EYE)
+        self.tab_fused = tabs.add_tab("Fused", icon=viser.Icon.PALETTE)
+        self.tab_session = tabs.add_tab("Session", icon=viser.Icon.FOLDER)
+
+        self.scene3d = Scene3D(self)
+        self.images = ImagePanels(self)
+        self.review = ReviewPanel(self)
+        self.solve = SolvePanel(self)
+        self.fused = FusedPanel(self)
+        self.session_panel = SessionPanel(self)
+
+        self.refresher.on("session", self._on_session)
+        self.state.subscribe(self.refresher.mark)
+        self.server.on_client_connect(self._on_connect)
+        if session_path is not None:
+            self.open_session(session_path)
+
+    # ---- lifecycle -------------------------------------------------------
+    @property
+    def host(self) -> str:
+        return self.server.get_host()
+
+    @property
+    def port(self) -> int:
+        return self.server.get_port()
+
+    @property
+    def url(self) -> str:
+        return f"http://{self.host}:{self.port}/"
+
+    def stop(self) -> None:
+        self.refresher.stop()
+        self.server.stop()
+
+    def wait_idle(self, timeout: float = 60.0) -> bool:
+        """Block until running jobs and pending display refreshes are done (tests, benchmarks)."""
+        self.jobs.join(timeout)
+        return self.refresher.wait_idle(timeout)
+
+    # ---- session -----------------------------------------------------------
+    def open_session(self, path, check_root: bool = False) -> None:
+        """Open a session folder; detect what detections.yaml lacks in the background."""
+        self.state.open(path, check_root=check_root)
+        missing = self.state.missing()
+        if missing:
+            self.start_detection(missing, redetect_auto=False)
+
+    def start_detection(self, captures=None, redetect_auto: bool = False) -> None:
+        from calib_core.pipeline import detect_session
+
+        st = self.state
+
+        def job(progress):
+            session, dets, _cal = st.snapshot()
+            with st.lock:
+                data = st.data
+            merged = detect_session(data, dets, progress=progress, captures=captures, redetect_auto=redetect_auto)
+            st.merge_automatic(merged)
+
+        self.jobs.start("detection", job)
+
+    def _on_session(self) -> None:
+        s = self.state.session
+        if s is not None:
+            self.title.content = (f"**sonarcal workbench**: `{s.name}` ({len(s.captures)} captures, "
+                                  f"cameras {', '.join(s.cameras)})")
+        for w in self.state.warnings:
+            notify(self.server, None, "Session warning", w, color="yellow")
+        self.scene3d.rebuild()
+        self.images.rebuild()
+        self.review.rebuild()
+        self.solve.refresh()
+        self.fused.rebuild()
+        self.session_panel.refresh()
+        self.refresher.mark("detections", "calibration", "selection")
+        for client in self.server.get_clients().values():
+            self.scene3d.home_view(client)
+
+    def _on_connect(self, client: viser.ClientHandle) -> None:
+        self.scene3d.home_view(client)
+
+    # ---- jobs --------------------------------------------------------------
+    def _progress(self, name: str, pct: float, label: str) -> None:
+        if pct < 0:
+            self.progress.visible = False
+            self.progress_label.visible = False
+            self.solve.job_finished(name)
+            return
+        self.progress.value = float(min(max(pct, 0.0), 100.0))
+        self.progress_label.content = f"{name}: {label}"
+        self.progress.visible = True
+        self.progress_label.visible = True
+
+    def _job_error(self, name: str, e: BaseException) -> None:
+        notify(self.server, None, f"{name.capitalize()} failed", error_text(e), seconds=15.0)
+
+
+def serve(session_path, host: str = "127.0.0.1", port: int = 8080) -> Workbench:
+    """Start a workbench (returns at once; the server runs in its own threads)."""
+    return Workbench(session_path, host=host, port=port)

@@ -1,0 +1,68 @@
+"""Session panel: open another session by path or by uploading a zipped session; downloads."""
+
+from __future__ import annotations
+
+import json
+
+import viser
+
+from app.common import guarded, notify
+from app.uploads import MAX_UPLOAD_BYTES, safe_unpack_zip
+from calib_core.detections import detections_path
+from calib_core.errors import SessionError
+from calib_core.results import calibration_path
+
+
+class SessionPanel:
+    def __init__(self, wb):
+        self.wb = wb
+        gui = wb.server.gui
+        g = guarded(wb.server, "Could not open the session")
+        with wb.tab_session:
+            self.info = gui.add_markdown("No session open.")
+            self.path = gui.add_text("Session folder", "", hint="A folder holding session.yaml (on the server's disk)")
+            self.open_btn = gui.add_button("Open folder", icon=viser.Icon.FOLDER)
+            self.upload = gui.add_upload_button(f"Upload zipped session (max {MAX_UPLOAD_BYTES // 2**20} MB)",
+                                                icon=viser.Icon.UPLOAD, mime_type="application/zip")
+            self.dl_cal = gui.add_button("Download calibration.json", icon=viser.Icon.DOWNLOAD)
+            self.dl_det = gui.add_button("Download detections.yaml", icon=viser.Icon.DOWNLOAD)
+        self.open_btn.on_click(g(self._open_path))
+        self.upload.on_upload(g(self._on_upload))
+        self.dl_cal.on_click(guarded(wb.server, "Download failed")(lambda e: self._download(e, "calibration")))
+        self.dl_det.on_click(guarded(wb.server, "Download failed")(lambda e: self._download(e, "detections")))
+
+    def _open_path(self, event) -> None:
+        text = self.path.value.strip()
+        if not text:
+            raise ValueError("type the path of a session folder first")
+        self.wb.open_session(text, check_root=True)
+        notify(self.wb.server, None, "Session opened", self.wb.state.session.name, color="green", seconds=4)
+
+    def _on_upload(self, event) -> None:
+        f = self.upload.value
+        root = safe_unpack_zip(f.content, self.wb.uploads_dir, label=f.name or "upload.zip")
+        self.wb.open_session(root)
+        notify(self.wb.server, None, "Session uploaded", f"{f.name}: {self.wb.state.session.name}", color="green", seconds=4)
+
+    def _download(self, event, what: str) -> None:
+        s = self.wb.state.require()
+        path = calibration_path(s) if what == "calibration" else detections_path(s)
+        if not path.is_file():
+            raise SessionError(path, "not written yet" + (" (run Solve first)" if what == "calibration" else ""))
+        event.client.send_file_download(path.name, path.read_bytes())
+
+    def refresh(self) -> None:
+        s = self.wb.state.session
+        if s is None:
+            return
+        cal = self.wb.state.calibration
+        lines = [f"**{s.name}**", f"- folder: `{s.root}`", f"- sphere diameter: {s.sphere_diameter_m * 1000:.1f} mm",
+                 f"- sonar: {s.sonar_model or '-'}; sound speed {s.sound_speed_m_s or '-'} m/s",
+                 f"- cameras: {', '.join(s.cameras)}; captures: {len(s.captures)}",
+                 f"- ground truth: {'yes (magenta in 3D)' if self.wb.state.ground_truth else 'no'}",
+                 f"- calibration: {'results/calibration.json' if cal else 'none yet'}"]
+        if s.measured_m:
+            lines.append("- measured: " + json.dumps(s.measured_m))
+        self.info.content = "\n".join(lines)
+        if not self.path.value:
+            self.path.value = str(s.root)

@@ -1,0 +1,388 @@
+"""The workbench's shared state: one session, its detections, undo and change records.
+
+Pure Python (no viser): every browser client works on the one :class:`WorkbenchState`
+of the server. Each change is made under one lock, saved at once to
+``detections.yaml`` (atomically, via calib_core) and recorded twice: in the entry's
+``history`` list (time, action, status, center, client) and on the undo stack.
+All geometry and computation are calib_core's; this module only holds and routes data.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import copy
+import dataclasses
+import itertools
+import os
+import threading
+from collections import OrderedDict
+from pathlib import Path
+from typing import Callable
+
+from calib_core.detections import (
+    detections_path,
+    load_detections,
+    merge_auto,
+    now_iso,
+    save_detections,
+)
+from calib_core.errors import SessionError
+from calib_core.results import calibration_path, load_calibration, save_calibration
+from calib_core.session import Session, load_session
+
+SENSOR_SONAR = "sonar"
+
+
+@dataclasses.dataclass
+class Change:
+    """One operator action (possibly several entries), for undo."""
+
+    id: int
+    client: str
+    action: str
+    items: list  # [(capture_id, sensor, previous entry or None, new entry)]
+
+
+def _content(entry: dict | None) -> dict | None:
+    """An entry without its change records (what undo compares)."""
+    return None if entry is None else {k: v for k, v in entry.items() if k != "history"}
+
+
+class WorkbenchState:
+    """Session + detections + calibration shared by every client of one server.
+
+    Args:
+        allowed_roots: folders a session may be opened from by path (the browser's
+            path field); ``None`` allows any folder.
+        cloud_cache: how many point clouds to keep in memory.
+    """
+
+    def __init__(self, allowed_roots: list[Path] | None = None, cloud_cache: int = 6):
+        self.lock = threading.RLock()
+        self.allowed_roots = None if allowed_roots is None else [Path(p).resolve() for p in allowed_roots]
+        self.session: Session | None = None
+        self.detections: dict = {}
+        self.calibration: dict | None = None
+        self.ground_truth: dict | None = None
+        self.selected: str | None = None
+        self.data = None  # calib_core.pipeline.SessionData: intrinsics/background caches
+        self.version = 0
+        self.cal_version = 0  # bumps whenever the calibration in use changes
+        self.undo_stack: list[Change] = []
+        self.warnings: list[str] = []
+        self._ids = itertools.count(1)
+        self._listeners: list[Callable[[str], None]] = []
+        self._det_sig = None
+        self._images: OrderedDict = OrderedDict()
+        self._clouds: OrderedDict = OrderedDict()
+        self._cloud_cache = cloud_cache
+
+    # ---- listeners -------------------------------------------------------
+    def subscribe(self, fn: Callable[[str], None]) -> None:
+        """``fn(kind)`` runs after each change; kind is session/detections/calibration/selection."""
+        self._listeners.append(fn)
+
+    def _emit(self, kind: str) -> None:
+        for fn in list(self._listeners):
+            fn(kind)
+
+    # ---- session -----------------------------------------------------------
+    def check_allowed(self, path: Path) -> Path:
+        p = Path(path).expanduser()
+        rp = p.resolve()
+        if self.allowed_roots is not None and not any(rp == r or r in rp.parents for r in self.allowed_roots):
+            roots = ", ".join(str(r) for r in self.allowed_roots)
+            raise SessionError(p, f"outside the folders this server may open ({roots})")
+        return p
+
+    def open(self, path: str | Path, check_root: bool = False) -> None:
+        """Load a session folder (manifest, detections, calibration, ground truth)."""
+        path = self.check_allowed(Path(path)) if check_root else Path(path)
+        session = load_session(path)
+        dets = load_detections(session)
+        warnings = []
+        cal = None
+        if calibration_path(session).exists():
+            try:
+                cal = load_calibration(calibration_path(session))
+            except SessionError as e:
+                warnings.append(str(e))
+        gt = None
+        try:
+            from calib_core.synth.ground_truth import load_ground_truth
+
+            gt = load_ground_truth(session.root)
+        except ImportError:
+            gt = None
+        except SessionError as e:
+            warnings.append(str(e))
+        from calib_core.pipeline import SessionData
+
+        with self.lock:
+            self.session, self.detections, self.calibration, self.ground_truth = session, dets, cal, gt
+            self.data = SessionData(session)
+            self.cal_version += 1
+            self.selected = session.captures[0].id
+            self.undo_stack.clear()
+            self.warnings = warnings
+            self._images.clear()
+            self._clouds.clear()
+            self._det_sig = self._disk_sig()
+            self.version += 1
+        self._emit("session")
+
+    def require(self) -> Session:
+        if self.session is None:
+            raise SessionError(Path("."), "no session is open (open one by path or upload a zip)")
+        return self.session
+
+    # ---- cached data (calib_core loaders) ----------------------------------
+    def camera(self, cam: str):
+        self.require()
+        with self.lock:
+            return self.data.camera(cam)
+
+    def cloud(self, cid: str):
+        from calib_core.io.clouds import load_cloud
+
+        with self.lock:
+            if cid in self._clouds:
+                self._clouds.move_to_end(cid)
+                return self._clouds[cid]
+            path = self.require().capture(cid).cloud_path
+        c = load_cloud(path)
+        with self.lock:
+            self._clouds[cid] = c
+            while len(self._clouds) > self._cloud_cache:
+                self._clouds.popitem(last=False)
+        return c
+
+    def image(self, cid: str, cam: str):
+        """RGB uint8 image of camera ``cam`` for capture ``cid`` (None if the capture has none)."""
+        from calib_core.io.images import load_image
+
+        with self.lock:
+            key = (cid, cam)
+            if key in self._images:
+                return self._images[key]
+            path = self.require().capture(cid).image_paths.get(cam)
+        img = None if path is None else load_image(path)
+        with self.lock:
+            self._images[key] = img
+            while len(self._images) > 12:
+                self._images.popitem(last=False)
+        return img
+
+    # ---- selection -----------------------------------------------------------
+    def select(self, cid: str) -> None:
+        s = self.require()
+        s.capture(cid)  # raises for an unknown id
+        with self.lock:
+            changed = cid != self.selected
+            self.selected = cid
+        if changed:
+            self._emit("selection")
+
+    def step(self, delta: int, order: list[str] | None = None) -> str:
+        """Select the next/previous capture in ``order`` (manifest order by default)."""
+        s = self.require()
+        ids = order or [c.id for c in s.captures]
+        with self.lock:
+            i = ids.index(self.selected) if self.selected in ids else -1
+            cid = ids[(i + delta) % len(ids)]
+        self.select(cid)
+        return cid
+
+    # ---- detections ----------------------------------------------------------
+    def entry(self, cid: str, sensor: str) -> dict | None:
+        with self.lock:
+            e = self.detections.get(cid, {}).get(sensor)
+            return copy.deepcopy(e)
+
+    def sensors(self, cid: str) -> list[str]:
+        """Sensors that apply to capture ``cid``: sonar and the cameras it has images for."""
+        cap = self.require().capture(cid)
+        return [SENSOR_SONAR] + [c for c in self.session.cameras if c in cap.image_paths]
+
+    def _disk_sig(self):
+        try:
+            st = detections_path(self.session).stat()
+            return (st.st_mtime_ns, st.st_size, st.st_ino)
+        except (FileNotFoundError, AttributeError):
+            return None
+
+    @contextlib.contextmanager
+    def _file_lock(self):
+        """Hold this process's lock and an advisory lock on the session folder, so that two
+        servers (or a server and a tool) editing one session serialise their read-modify-writes."""
+        with self.lock:
+            fd = None
+            try:
+                import fcntl
+
+                fd = os.open(self.session.root / ".detections.yaml.lock", os.O_CREAT | os.O_RDWR, 0o644)
+                fcntl.flock(fd, fcntl.LOCK_EX)
+            except (ImportError, OSError):  # no flock (or read-only folder): the process lock still holds
+                if fd is not None:
+                    os.close(fd)
+                fd = None
+            try:
+                yield
+            finally:
+                if fd is not None:
+                    os.close(fd)  # closing releases the flock
+
+    def _sync_from_disk(self) -> None:
+        """Reload detections.yaml if someone else (the CLI, an editor) changed it."""
+        sig = self._disk_sig()
+        if sig != self._det_sig:
+            self.detections = load_detections(self.session)
+            self._det_sig = sig
+
+    def apply(self, updates: list[tuple[str, str, dict | None]], client: str, action: str) -> Change:
+        """Set several entries in one action; save at once; push one undo record.
+
+        ``updates`` holds (capture_id, sensor, new entry or None to remove). Each new
+        entry's ``history`` continues the old one with a record of this change.
+        """
+        s = self.require()
+        with self._file_lock():
+            self._sync_from_disk()
+            items = []
+            for cid, sensor, new in updates:
+                if sensor not in self.sensors(cid):
+                    raise SessionError(s.manifest_path, f"capture {cid} has no sensor '{sensor}'")
+                prev = copy.deepcopy(self.detections.get(cid, {}).get(sensor))
+                if new is not None:
+                    new = copy.deepcopy(new)
+                    hist = list((prev or {}).get("history") or [])
+                    hist.append({"time": now_iso(), "action": action, "status": new.get("status"),
+                                 "center": new.get("center"), "client": str(client)})
+                    new["history"] = hist
+                    self.detections.setdefault(cid, {})[sensor] = new
+                else:
+                    self.detections.get(cid, {}).pop(sensor, None)
+                items.append((cid, sensor, prev, copy.deepcopy(new)))
+            save_detections(s, self.detections)
+            self._det_sig = self._disk_sig()
+            ch = Change(next(self._ids), str(client), action, items)
+            self.undo_stack.append(ch)
+            del self.undo_stack[:-200]
+            self.version += 1
+        self._emit("detections")
+        return ch
+
+    def set_status(self, cid: str, status: str, client: str, sensors: list[str] | None = None) -> Change:
+        """Accept or reject (``status``) the given sensors of a capture (all by default).
+
+        Accepting needs a centre: a sensor without one is left out (an error if none has one).
+        """
+        if status not in ("accepted", "rejected", "auto"):
+            raise ValueError(f"unknown status {status!r}")
+        sensors = sensors or self.sensors(cid)
+        updates = []
+        for sensor in sensors:
+            cur = self.entry(cid, sensor) or {}
+            if status == "accepted" and cur.get("center") is None:
+                continue
+            if cur.get("status") == status:
+                continue
+            updates.append((cid, sensor, dict(cur, status=status)))
+        if not updates:
+            if status == "accepted" and not any((self.entry(cid, x) or {}).get("center") for x in sensors):
+                raise SessionError(self.require().manifest_path,
+                                   f"capture {cid}: nothing to accept (no detected centre; correct it by hand first)")
+            raise SessionError(self.require().manifest_path, f"capture {cid} is already {status}")
+        return self.apply(updates, client, {"accepted": "accept", "rejected": "reject", "auto": "reset"}[status])
+
+    def correct(self, cid: str, sensor: str, entry: dict, client: str, action: str = "correct") -> Change:
+        """Store an operator correction (a refit result or a hand-placed centre) as ``corrected``."""
+        if entry.get("center") is None:
+            raise SessionError(self.require().manifest_path, f"capture {cid} {sensor}: a correction needs a centre")
+        return self.apply([(cid, sensor, dict(entry, status="corrected"))], client, action)
+
+    def undo(self, client: str | None = None) -> Change:
+        """Undo the latest change (of ``client`` when given); refuse if it was changed since."""
+        s = self.require()
+        with self._file_lock():
+            self._sync_from_disk()
+            idx = next((i for i in range(len(self.undo_stack) - 1, -1, -1)
+                        if client is None or self.undo_stack[i].client == str(client)), None)
+            if idx is None:
+                raise SessionError(detections_path(s), "nothing to undo")
+            ch = self.undo_stack[idx]
+            for cid, sensor, _prev, new in ch.items:
+                if _content(self.detections.get(cid, {}).get(sensor)) != _content(new):
+                    raise SessionError(detections_path(s),
+                                       f"cannot undo '{ch.action}' on {cid}/{sensor}: it was changed since")
+            for cid, sensor, prev, _new in ch.items:
+                cur = self.detections.get(cid, {}).get(sensor) or {}
+                if prev is None:
+                    self.detections.get(cid, {}).pop(sensor, None)
+                    continue
+                restored = copy.deepcopy(prev)
+                restored["history"] = list(cur.get("history") or []) + [
+                    {"time": now_iso(), "action": f"undo {ch.action}", "status": prev.get("status"),
+                     "center": prev.get("center"), "client": str(client)}]
+                self.detections.setdefault(cid, {})[sensor] = restored
+            save_detections(s, self.detections)
+            self._det_sig = self._disk_sig()
+            del self.undo_stack[idx]
+            self.version += 1
+        self._emit("detections")
+        return ch
+
+    def merge_automatic(self, auto: dict) -> None:
+        """Merge fresh automatic detections (operator entries are never overwritten)."""
+        s = self.require()
+        with self._file_lock():
+            self._sync_from_disk()
+            auto_only = {cid: {k: e for k, e in sens.items() if e.get("status", "auto") == "auto"}
+                         for cid, sens in auto.items()}
+            self.detections = merge_auto(self.detections, auto_only)
+            save_detections(s, self.detections)
+            self._det_sig = self._disk_sig()
+            self.version += 1
+        self._emit("detections")
+
+    def missing(self) -> list[str]:
+        """Captures with a sensor that has no entry yet (to detect on load)."""
+        s = self.require()
+        with self.lock:
+            return [c.id for c in s.captures if any(x not in self.detections.get(c.id, {}) for x in self.sensors(c.id))]
+
+    # ---- calibration -------------------------------------------------------
+    def set_calibration(self, result: dict) -> Path:
+        """Save exactly ``result`` (the solver's dict) to results/calibration.json."""
+        s = self.require()
+        path = calibration_path(s)
+        with self.lock:
+            save_calibration(path, result)
+            self.calibration = result
+            self.cal_version += 1
+            self.version += 1
+        self._emit("calibration")
+        return path
+
+    def snapshot(self) -> tuple[Session, dict, dict | None]:
+        """A consistent copy of (session, detections, calibration) for worker threads."""
+        with self.lock:
+            return self.require(), copy.deepcopy(self.detections), copy.deepcopy(self.calibration)
+
+    # ---- calibration lookups (data only; projection is calib_core.fusion's) ----
+    def T_cam_sonar(self, cam: str):
+        """(T_cam_sonar 4x4, range_scale s) of the current calibration, or None if uncalibrated.
+
+        Camera-frame points are ``T_cam_sonar (X_cloud / s)`` (calib_core.solve.model).
+        """
+        import numpy as np
+
+        with self.lock:
+            cal = self.calibration
+        c = (cal or {}).get("cameras", {}).get(cam)
+        if not c or c.get("T_cam_sonar") is None:
+            return None
+        scale = c.get("range_scale", (cal or {}).get("range_scale", 1.0))
+        if isinstance(scale, dict):
+            scale = scale.get("value", 1.0)
+        return np.asarray(c["T_cam_sonar"], float), float(scale or 1.0)

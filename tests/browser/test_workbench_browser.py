@@ -1,0 +1,230 @@
+"""The workbench in real Chromium (Debian's, driven by Playwright, headless) against a live server.
+
+An operator loads a synthetic session, rejects a capture, corrects an image detection by
+clicking in the image (once placing the centre exactly, once refitting near the click),
+runs the solver; the page, detections.yaml and results/calibration.json must agree, and the
+calibration must equal what ``calibrate_session`` (the CLI's function) gives for the same
+detections. A second browser must see the same session. Screenshots go to test-artifacts/.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import re
+import shutil
+import time
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+
+pytestmark = pytest.mark.browser
+
+ARTIFACTS = Path(__file__).resolve().parents[2] / "test-artifacts"
+CHROMIUM_ARGS = ["--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
+                 "--disable-background-networking", "--disable-component-update", "--disable-sync"]
+
+
+T0 = [time.monotonic()]
+
+
+def wait_for(cond, timeout=60.0, what="condition"):
+    end = time.monotonic() + timeout
+    print(f"[{time.monotonic() - T0[0]:6.1f}s] waiting for {what}")
+    while time.monotonic() < end:
+        v = cond()
+        if v:
+            return v
+        time.sleep(0.1)
+    raise AssertionError(f"timed out waiting for {what}")
+
+
+@pytest.fixture(scope="module")
+def session_root(tmp_path_factory):
+    from calib_core.synth.generate import generate_session
+
+    # small images (480x270) and ~1.5k-point clouds keep software WebGL fast
+    return generate_session(tmp_path_factory.mktemp("wb") / "quick", "quick", 11, scale=0.25,
+                            pan_step_deg=1.0, sub_rays=7)
+
+
+@pytest.fixture(scope="module")
+def workbench(session_root):
+    from app.server import Workbench
+
+    wb = Workbench(session_root, host="127.0.0.1", port=0)
+    assert wb.host == "127.0.0.1"
+    yield wb
+    wb.stop()
+
+
+@pytest.fixture(scope="module")
+def browser(tmp_path_factory):
+    from playwright.sync_api import sync_playwright
+
+    exe = shutil.which("chromium")
+    if exe is None:
+        pytest.skip("Debian chromium is not installed")
+    with sync_playwright() as p:
+        ctx = p.chromium.launch_persistent_context(str(tmp_path_factory.mktemp("chromium")), executable_path=exe,
+                                                   headless=True, args=CHROMIUM_ARGS,
+                                                   viewport={"width": 1500, "height": 860})
+        ctx.set_default_timeout(30_000)
+        yield ctx
+        ctx.close()
+
+
+def shot(page, name: str) -> np.ndarray:
+    ARTIFACTS.mkdir(exist_ok=True)
+    png = page.screenshot(path=str(ARTIFACTS / name))
+    return cv2.imdecode(np.frombuffer(png, np.uint8), cv2.IMREAD_COLOR)
+
+
+def canvas_box(page):
+    boxes = [b for b in (c.bounding_box() for c in page.locator("canvas").all()) if b]
+    return max(boxes, key=lambda b: b["width"] * b["height"])
+
+
+def page_text(page) -> str:
+    return page.locator("body").inner_text()
+
+
+def choose(page, combobox: str, option: str) -> None:
+    page.get_by_role("combobox", name=combobox).click()
+    page.get_by_role("option", name=option, exact=True).click()
+
+
+def click_pixel(page, wb, client, cam: str, uv) -> None:
+    """Click where raw pixel ``uv`` of camera ``cam``'s board appears after 'View through cam'."""
+    model = wb.state.camera(cam)
+    T, rw, rh = wb.images.board_geometry(cam)
+    d = T[2, 3]
+    box = canvas_box(page)
+    k = box["height"] / (2 * d * math.tan(client.camera.fov / 2))  # screen px per metre on the board
+    x = box["x"] + box["width"] / 2 + ((uv[0] + 0.5) / model.width_px - 0.5) * rw * k
+    y = box["y"] + box["height"] / 2 + ((uv[1] + 0.5) / model.height_px - 0.5) * rh * k
+    page.mouse.click(x, y)
+
+
+def disk_detections(root):
+    from calib_core.detections import load_detections
+    from calib_core.session import load_session
+
+    return load_detections(load_session(root))
+
+
+def test_operator_session_in_chromium(workbench, browser, session_root):
+    from calib_core.detections import load_detections
+    from calib_core.results import calibration_path
+    from calib_core.session import load_session
+    from calib_core.solve.calibrate import calibrate_session
+    from calib_core.synth.ground_truth import load_ground_truth
+
+    wb = workbench
+    page = browser.new_page()
+    page.goto(wb.url)
+    page.get_by_text("sonarcal workbench", exact=False).first.wait_for()
+    assert wb.wait_idle(120), "automatic detection did not finish"
+    page.get_by_text("Captures (worst first)").wait_for()
+    time.sleep(1.0)
+    img = shot(page, "workbench_loaded.png")
+    box = canvas_box(page)
+    view = img[int(box["y"]):int(box["y"] + box["height"]), int(box["x"]):int(box["x"] + box["width"])]
+    assert img.std() > 10 and view.std() > 5, "the page or the 3D view rendered blank"
+
+    # 1. reject a capture (one action)
+    choose(page, "Capture", "p03")
+    wait_for(lambda: wb.state.selected == "p03", 20, "selection of p03")
+    page.get_by_role("button", name="Reject").click()
+    wait_for(lambda: disk_detections(session_root).get("p03", {}).get("cam1", {}).get("status") == "rejected",
+             20, "p03 rejected on disk")
+    disk = disk_detections(session_root)
+    assert disk["p03"]["sonar"]["status"] == "rejected"
+    assert disk["p03"]["cam1"]["history"][-1]["status"] == "rejected"
+    wait_for(lambda: re.search(r"p03\s+rejected", page_text(page)), 20, "p03 rejected in the page")
+
+    # 2. correct cam1 of p02 by clicking exactly (refit off)
+    choose(page, "Capture", "p02")
+    wait_for(lambda: wb.state.selected == "p02", 20, "selection of p02")
+    auto = np.asarray(disk["p02"]["cam1"]["center"], float)
+    page.get_by_role("checkbox", name="Refit near a click").uncheck()
+    wait_for(lambda: not wb.images.refit.value, 10, "refit off")
+    client = next(iter(wb.server.get_clients().values()))
+    fov_before = client.camera.fov
+    page.get_by_role("button", name="View through cam1").click()
+    wait_for(lambda: abs(client.camera.fov - fov_before) > 1e-6, 20, "the view to move to cam1's board")
+    time.sleep(1.5)  # let the software renderer draw the new view
+    target = auto + np.array([6.0, -4.0])
+    click_pixel(page, wb, client, "cam1", target)
+    wait_for(lambda: disk_detections(session_root)["p02"]["cam1"]["status"] == "corrected", 20, "p02 corrected")
+    e = disk_detections(session_root)["p02"]["cam1"]
+    assert np.linalg.norm(np.asarray(e["center"]) - target) < 0.75, (e["center"], target)
+    assert e["method"] == "operator-click" and e["history"][-1]["action"] == "click"
+    shot(page, "workbench_click.png")
+
+    # 3. correct cam1 of p04 by clicking near the true centre with refit on
+    gt = load_ground_truth(session_root)
+    true_uv = np.asarray(gt["captures"]["p04"]["images"]["cam1"]["center_uv_px"], float)
+    choose(page, "Capture", "p04")
+    wait_for(lambda: wb.state.selected == "p04", 20, "selection of p04")
+    page.get_by_role("checkbox", name="Refit near a click").check()
+    wait_for(lambda: wb.images.refit.value, 10, "refit on")
+    time.sleep(0.5)
+    click_pixel(page, wb, client, "cam1", true_uv + np.array([4.0, 3.0]))
+    wait_for(lambda: disk_detections(session_root)["p04"]["cam1"]["status"] == "corrected", 30, "p04 corrected")
+    e4 = disk_detections(session_root)["p04"]["cam1"]
+    assert e4.get("refit") is True and np.linalg.norm(np.asarray(e4["center"]) - true_uv) < 2.0, (e4, true_uv)
+
+    # 4. solve from the page
+    page.get_by_role("tab", name="Solve").click()
+    page.get_by_role("button", name="Solve", exact=True).click()
+    cal_path = calibration_path(load_session(session_root))
+    wait_for(lambda: cal_path.exists(), 120, "results/calibration.json")
+    assert wb.wait_idle(120)
+    cal = json.loads(cal_path.read_text())
+    c1 = cal["cameras"]["cam1"]
+    assert "p03" not in c1["captures_used"] and "p02" in c1["captures_used"]
+    row = next(r for r in c1["residuals"] if r["capture"] == "p02")
+    assert np.allclose(row["uv_px"], e["center"], atol=1e-9)  # the solver used the clicked centre
+    shown = f"rms {c1['rms_reprojection_px']:.2f} px over {len(c1['captures_used'])} captures"
+    wait_for(lambda: shown in page_text(page), 30, f"'{shown}' in the page")
+    t = np.asarray(c1["T_cam_sonar"])[:3, 3]
+    assert f"{t[0]:+.4f} {t[1]:+.4f} {t[2]:+.4f}" in page_text(page)
+
+    # the CLI's function on the same detections gives the same numbers
+    s = load_session(session_root)
+    again = calibrate_session(s, load_detections(s))
+    T_cli = np.asarray(again["cameras"]["cam1"]["T_cam_sonar"])
+    assert np.max(np.abs(T_cli - np.asarray(c1["T_cam_sonar"]))) < 1e-9
+    assert abs(again["cameras"]["cam1"]["rms_reprojection_px"] - c1["rms_reprojection_px"]) < 1e-9
+    shot(page, "workbench_solved.png")
+
+    # 5. a second browser sees the same session
+    page2 = browser.new_page()
+    page2.goto(wb.url)
+    page2.get_by_text("Captures (worst first)").wait_for()
+    wait_for(lambda: re.search(r"p03\s+rejected", page_text(page2)), 20, "p03 rejected in the second page")
+    assert re.search(r"p02\s+auto [\d.]+\s+corrected", page_text(page2))
+    page2.get_by_role("tab", name="Solve").click()
+    wait_for(lambda: shown in page_text(page2), 20, "the solve result in the second page")
+    page2.close()
+
+    # 6. undo from the page restores p04's automatic entry (and records it)
+    page.get_by_role("tab", name="Review").click()
+    page.get_by_role("button", name="Undo").click()
+    wait_for(lambda: disk_detections(session_root)["p04"]["cam1"]["status"] == "auto", 20, "undo on disk")
+    assert disk_detections(session_root)["p04"]["cam1"]["history"][-1]["action"] == "undo click"
+
+    # 7. a bad action shows an error in the page; the server carries on with its session
+    page.get_by_role("tab", name="Session").click()
+    page.locator("input.mantine-TextInput-input:visible").first.fill(str(session_root.parent / "no-such-session"))
+    page.get_by_role("button", name="Open folder").click()
+    page.get_by_text("Could not open the session").wait_for()
+    assert wb.state.session is not None and wb.state.session.root == session_root.resolve()
+    page.get_by_role("tab", name="Review").click()
+    before = wb.state.selected
+    page.get_by_role("button", name="Next").click()
+    wait_for(lambda: wb.state.selected != before, 10, "the server to answer after the error")
+    page.close()
