@@ -14,7 +14,7 @@ import datetime as _dt
 import math
 from pathlib import Path
 
-from calib_core.errors import SessionError
+from calib_core.errors import SessionError, short_repr
 from calib_core.io.atomic import atomic_write_yaml
 
 DETECTIONS_FORMAT = "sonar-camera-detections/1"
@@ -37,7 +37,7 @@ def load_detections(session) -> dict:
     data = read_yaml_mapping(path, "detections file")
     fmt = data.get("format", DETECTIONS_FORMAT)
     if fmt != DETECTIONS_FORMAT:
-        raise SessionError(path, f"format '{fmt}' is not {DETECTIONS_FORMAT}")
+        raise SessionError(path, f"format {short_repr(fmt)} is not {DETECTIONS_FORMAT}")
     caps = data.get("captures") or {}
     if not isinstance(caps, dict):
         raise SessionError(path, "'captures' must map capture ids to sensors")
@@ -47,14 +47,14 @@ def load_detections(session) -> dict:
     for cid, entries in caps.items():
         cid = str(cid)
         if cid not in known:
-            raise SessionError(path, f"capture '{cid}' is not in session.yaml")
+            raise SessionError(path, f"capture {short_repr(cid)} is not in session.yaml")
         if not isinstance(entries, dict):
             raise SessionError(path, f"captures.{cid} must map sensor names to entries")
         out[cid] = {}
         for sensor, e in entries.items():
             sensor = str(sensor)
             if sensor not in sensors:
-                raise SessionError(path, f"captures.{cid}: unknown sensor '{sensor}' (expected one of {', '.join(sorted(sensors))})")
+                raise SessionError(path, f"captures.{cid}: unknown sensor {short_repr(sensor)} (expected one of {', '.join(sorted(sensors))})")
             out[cid][sensor] = _check_entry(path, f"captures.{cid}.{sensor}", e, 3 if sensor == "sonar" else 2)
     return out
 
@@ -64,19 +64,26 @@ def _check_entry(path: Path, what: str, e, dim: int) -> dict:
         raise SessionError(path, f"{what} must be a mapping with 'status' (and 'center')")
     status = e.get("status", "auto")
     if status not in STATUSES:
-        raise SessionError(path, f"{what}.status '{status}' is not one of {', '.join(STATUSES)}")
+        raise SessionError(path, f"{what}.status {short_repr(status)} is not one of {', '.join(STATUSES)}")
     e = dict(e)
     e["status"] = status
     c = e.get("center")
     if c is not None:
-        if not isinstance(c, list) or len(c) != dim or not all(
-            isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in c
-        ):
-            raise SessionError(path, f"{what}.center must be {dim} finite numbers, got {c!r}")
+        if not isinstance(c, list) or len(c) != dim or not all(_finite_number(v) for v in c):
+            raise SessionError(path, f"{what}.center must be {dim} finite numbers, got {short_repr(c)}")
         e["center"] = [float(v) for v in c]
     elif status in ("accepted", "corrected"):
         raise SessionError(path, f"{what} is '{status}' but has no center")
     return e
+
+
+def _finite_number(v) -> bool:
+    if isinstance(v, bool) or not isinstance(v, (int, float)):
+        return False
+    try:
+        return math.isfinite(v)
+    except OverflowError:  # an int too large for a float
+        return False
 
 
 def save_detections(session, detections: dict) -> None:

@@ -21,3 +21,9 @@ class SessionError(Exception):
         self.path = None if path is None else Path(path)
         self.problem = problem
         super().__init__(f"{self.path}: {problem}" if self.path is not None else problem)
+
+
+def short_repr(value, n: int = 60) -> str:
+    """repr of a value read from a user's file, cut to ``n`` characters for messages."""
+    r = repr(value)
+    return r if len(r) <= n else r[: n - 3] + "..."

@@ -5,7 +5,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from calib_core.errors import SessionError
+from calib_core.errors import SessionError, short_repr
 from calib_core.io.atomic import atomic_write_json
 
 CALIBRATION_FORMAT = "sonar-camera-calibration/1"
@@ -24,19 +24,26 @@ def save_calibration(path: str | Path, result: dict) -> None:
 
 def load_calibration(path: str | Path) -> dict:
     """Read a calibration.json, with clear errors for missing/corrupt files."""
+    import numpy as np
+
     path = Path(path)
     if not path.is_file():
         raise SessionError(path, "calibration file not found (run 'sonarcal calibrate' first)")
     try:
-        data = json.loads(path.read_text(encoding="utf-8"))
+        data = json.loads(path.read_text(encoding="utf-8-sig"))
     except (UnicodeDecodeError, json.JSONDecodeError) as e:
         raise SessionError(path, f"invalid JSON ({e})") from None
+    except RecursionError:
+        raise SessionError(path, "invalid JSON (nested too deeply)") from None
+    except OSError as e:
+        raise SessionError(path, f"cannot read the calibration file: {e.strerror or e}") from None
     if not isinstance(data, dict) or data.get("format") != CALIBRATION_FORMAT or not isinstance(data.get("cameras"), dict):
-        raise SessionError(path, f"not a {CALIBRATION_FORMAT} file")
-    import numpy as np
-
+        raise SessionError(path, f"not a {CALIBRATION_FORMAT} file (needs 'format' and a 'cameras' mapping)")
     for cam, c in data["cameras"].items():
-        T = np.asarray(c.get("T_cam_sonar"), dtype=float) if isinstance(c, dict) else None
+        try:
+            T = np.asarray(c.get("T_cam_sonar"), dtype=float) if isinstance(c, dict) else None
+        except (TypeError, ValueError, OverflowError, RecursionError):
+            T = None
         if T is None or T.shape != (4, 4) or not np.isfinite(T).all():
-            raise SessionError(path, f"cameras.{cam}.T_cam_sonar must be a finite 4x4 matrix")
+            raise SessionError(path, f"cameras.{short_repr(cam)}.T_cam_sonar must be a finite 4x4 matrix")
     return data

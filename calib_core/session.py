@@ -21,7 +21,7 @@ import numpy as np
 import yaml
 
 from calib_core.camera import CameraModel
-from calib_core.errors import SessionError
+from calib_core.errors import SessionError, short_repr
 
 SESSION_FORMAT = "sonar-camera-session/1"
 MANIFEST = "session.yaml"
@@ -89,14 +89,17 @@ def resolve_inside(root: Path, rel, manifest: Path, what: str) -> Path:
     Absolute paths, ``..`` escapes and symlinks pointing out of the folder are refused.
     """
     if not isinstance(rel, str) or not rel.strip():
-        raise SessionError(manifest, f"{what}: expected a relative path, got {rel!r}")
+        raise SessionError(manifest, f"{what}: expected a relative path, got {short_repr(rel)}")
     if "\x00" in rel:
         raise SessionError(manifest, f"{what}: path holds a NUL character")
     p = Path(rel)
-    if p.is_absolute() or (len(rel) > 1 and rel[1] == ":"):
+    if p.is_absolute() or (len(rel) > 1 and rel[1] == ":") or rel.startswith("\\"):
         raise SessionError(manifest, f"{what}: absolute path '{rel}' is not allowed; paths are relative to the session folder")
     root_r = root.resolve()
-    full = (root / p).resolve()
+    try:
+        full = (root / p).resolve()
+    except (OSError, RuntimeError):  # symlink loop, name too long
+        raise SessionError(manifest, f"{what}: path '{rel}' cannot be resolved (symlink loop or bad name)") from None
     if full != root_r and root_r not in full.parents:
         raise SessionError(manifest, f"{what}: path '{rel}' leaves the session folder")
     return full
@@ -104,27 +107,39 @@ def resolve_inside(root: Path, rel, manifest: Path, what: str) -> Path:
 
 def _num(manifest, value, what, positive=True):
     if isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise SessionError(manifest, f"{what} must be a number, got {value!r}")
-    v = float(value)
+        raise SessionError(manifest, f"{what} must be a number, got {short_repr(value)}")
+    try:
+        v = float(value)
+    except OverflowError:
+        v = math.inf
     if not math.isfinite(v) or (positive and v <= 0):
-        raise SessionError(manifest, f"{what} must be a positive finite number, got {value!r}")
+        raise SessionError(manifest, f"{what} must be a {'positive ' if positive else ''}finite number, got {short_repr(value)}")
     return v
+
+
+MAX_YAML_BYTES = 50 * 1024 * 1024
 
 
 def read_yaml_mapping(path: Path, what: str = "file") -> dict:
     """Read a YAML file that must hold a mapping; clear errors for missing/invalid files."""
     if not path.is_file():
-        raise SessionError(path, f"{what} not found")
+        raise SessionError(path, f"{what} not found" if not path.exists() else f"{what} is not a regular file")
     try:
-        text = path.read_text(encoding="utf-8")
+        if path.stat().st_size > MAX_YAML_BYTES:
+            raise SessionError(path, f"{what} is {path.stat().st_size / 1e6:.0f} MB: too large for a YAML file here")
+        text = path.read_text(encoding="utf-8-sig")
     except UnicodeDecodeError:
         raise SessionError(path, "not a text file (invalid UTF-8)") from None
+    except OSError as e:
+        raise SessionError(path, f"cannot read {what}: {e.strerror or e}") from None
     try:
-        data = yaml.safe_load(text)
+        data = yaml.load(text, Loader=getattr(yaml, "CSafeLoader", yaml.SafeLoader))  # libyaml: same YAML, faster
     except yaml.YAMLError as e:
         mark = getattr(e, "problem_mark", None)
         where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark else ""
         raise SessionError(path, f"invalid YAML{where}: {getattr(e, 'problem', None) or e}") from None
+    except RecursionError:
+        raise SessionError(path, "invalid YAML: nested too deeply") from None
     if not isinstance(data, dict):
         raise SessionError(path, f"expected a YAML mapping at the top level, got {type(data).__name__}")
     return data
@@ -133,7 +148,11 @@ def read_yaml_mapping(path: Path, what: str = "file") -> dict:
 def load_session(folder: str | Path) -> Session:
     """Parse and structurally validate ``folder/session.yaml``."""
     root = Path(folder)
-    if not root.exists():
+    try:
+        exists = root.exists()
+    except (OSError, ValueError):
+        exists = False
+    if not exists:
         raise SessionError(root, "session folder not found")
     if root.is_file() and root.name == MANIFEST:
         root = root.parent
@@ -145,9 +164,9 @@ def load_session(folder: str | Path) -> Session:
 
     fmt = data.get("format")
     if fmt is not None and (not isinstance(fmt, str) or not fmt.startswith("sonar-camera-session/")):
-        raise SessionError(manifest, f"format '{fmt}' is not a sonar-camera-session format")
+        raise SessionError(manifest, f"format {short_repr(fmt)} is not a sonar-camera-session format")
     if isinstance(fmt, str) and fmt != SESSION_FORMAT:
-        raise SessionError(manifest, f"format '{fmt}' is newer than this tool understands ({SESSION_FORMAT})")
+        raise SessionError(manifest, f"format {short_repr(fmt)} is not one this tool understands ({SESSION_FORMAT})")
 
     sphere = data.get("sphere")
     if not isinstance(sphere, dict) or "diameter" not in sphere:
@@ -215,10 +234,10 @@ def load_session(folder: str | Path) -> Session:
         captures.append(Capture(cid, cloud, imgs))
 
     measured = {}
-    for k, v in (data.get("measured") or {}).items():
+    for k, v in _mapping(manifest, data.get("measured"), "measured").items():
         measured[str(k)] = _num(manifest, v, f"measured.{k}")
     stereo = {}
-    for k, v in (data.get("stereo") or {}).items():
+    for k, v in _mapping(manifest, data.get("stereo"), "stereo").items():
         stereo[str(k)] = parse_transform(manifest, v, f"stereo.{k}")
 
     return Session(
@@ -236,11 +255,21 @@ def load_session(folder: str | Path) -> Session:
     )
 
 
+def _mapping(manifest: Path, value, what: str) -> dict:
+    if value is None:
+        return {}
+    if not isinstance(value, dict):
+        raise SessionError(manifest, f"'{what}' must be a mapping, got {type(value).__name__}")
+    return value
+
+
 def parse_transform(path: Path, value, what: str) -> np.ndarray:
     """Validate a 4x4 rigid transform given as nested lists."""
+    if isinstance(value, (str, bytes)):
+        raise SessionError(path, f"{what} must be a 4x4 matrix of numbers")
     try:
         T = np.asarray(value, dtype=float)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError, RecursionError):
         raise SessionError(path, f"{what} must be a 4x4 matrix of numbers") from None
     if T.shape != (4, 4) or not np.isfinite(T).all():
         raise SessionError(path, f"{what} must be a finite 4x4 matrix, got shape {T.shape}")
@@ -305,6 +334,13 @@ def validate_session(folder: str | Path) -> SessionCheck:
         load_detections(session)
     except SessionError as e:
         problems.append(e)
+    from calib_core.results import calibration_path, load_calibration
+
+    if calibration_path(session).exists():
+        try:
+            load_calibration(calibration_path(session))
+        except SessionError as e:
+            problems.append(e)
     return SessionCheck(session, problems, models, points)
 
 

@@ -35,7 +35,7 @@ def run(args) -> int:
     if check.problems:
         err_console.print(f"[bold red]{len(check.problems)} problem(s):[/bold red]")
         for e in check.problems:
-            err_console.print(f"  error: {e}", markup=False)
+            err_console.print(f"  error: {e}", markup=False, soft_wrap=True)  # one line each, however long
         return 2
     console.print("[green]no problems found[/green]")
     return 0

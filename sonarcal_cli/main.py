@@ -28,7 +28,20 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
+def _quiet_native_logs() -> None:
+    """OpenCV logs decoder warnings ("PNG input buffer is incomplete") straight to stderr;
+    our SessionError already says what is wrong, in one line naming the file."""
+    try:
+        import cv2
+
+        cv2.utils.logging.setLogLevel(cv2.utils.logging.LOG_LEVEL_ERROR if os.environ.get("SONARCAL_DEBUG")
+                                      else cv2.utils.logging.LOG_LEVEL_SILENT)
+    except (ImportError, AttributeError):
+        pass
+
+
 def main(argv: list[str] | None = None) -> int:
+    _quiet_native_logs()
     parser = build_parser()
     try:
         args = parser.parse_args(argv)
@@ -45,6 +58,10 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)
         return 130
+    except OSError as e:  # permission denied, disk full, read-only folder: the user can fix these
+        where = e.filename if e.filename is not None else "file system"
+        print(f"error: {where}: {e.strerror or e}", file=sys.stderr)
+        return 2
     except MemoryError:
         print("error: out of memory (the input is too large for this machine)", file=sys.stderr)
         return 2

@@ -137,10 +137,13 @@ def _batched_spheres(S4: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def ransac_sphere(X: np.ndarray, r_lo: float, r_hi: float, thr_m: float, reach_m: float,
-                  rng: np.random.Generator, n_hyp: int = 160):
+                  rng: np.random.Generator, n_hyp: int = 160, r_pref: float | None = None,
+                  r_pref_sd: float = 1.0):
     """Best sphere (centre, radius, inlier mask) with radius in [r_lo, r_hi] among random
     4-point samples drawn near random anchors; the centre must lie beyond its inliers as
-    seen from the sonar at the origin. None when no sample is acceptable."""
+    seen from the sonar at the origin. With ``r_pref`` the inlier count is weighted by a
+    Gaussian in (radius - r_pref) / r_pref_sd, so a sphere of the expected size beats a
+    larger one swallowing its chain or stand. None when no sample is acceptable."""
     n = len(X)
     if n < 6:
         return None
@@ -165,7 +168,9 @@ def ransac_sphere(X: np.ndarray, r_lo: float, r_hi: float, thr_m: float, reach_m
     C, Rr = C[good], Rr[good]
     Xs = X if n <= 3000 else X[rng.choice(n, 3000, replace=False)]
     dist = np.linalg.norm(Xs[None, :, :] - C[:, None, :], axis=2)
-    cnt = (np.abs(dist - Rr[:, None]) < thr_m).sum(axis=1)
+    cnt = (np.abs(dist - Rr[:, None]) < thr_m).sum(axis=1).astype(float)
+    if r_pref is not None:
+        cnt *= np.exp(-0.5 * ((Rr - r_pref) / r_pref_sd) ** 2)
     for b in np.argsort(-cnt)[:8]:
         inl = np.abs(np.linalg.norm(X - C[b], axis=1) - Rr[b]) < thr_m
         if inl.sum() < 6:
@@ -238,7 +243,7 @@ def find_candidates(points_m: np.ndarray, radius_m: float, half_angle_rad: float
             bloom = rng_c * np.tan(half_angle_rad)
             thr = max(0.2 * r, 0.75 * voxel)
             found = ransac_sphere(X, 0.6 * r, 1.5 * r + 2.0 * bloom + 0.01, thr,
-                                  2.5 * r + bloom, rng)
+                                  2.5 * r + bloom, rng, r_pref=r + bloom, r_pref_sd=0.25 * r)
             if found is None:
                 break
             c, rf, inl = found

@@ -15,6 +15,7 @@ import numpy as np
 
 from calib_core.errors import SessionError
 
+MAX_CLOUD_BYTES = 2 * 2**30  # a sonar scan is tens of MB; anything this big is a wrong file
 CLOUD_SUFFIXES = (".ply", ".pcd", ".xyz", ".csv", ".txt", ".npy", ".las", ".laz")
 
 
@@ -42,8 +43,12 @@ def load_cloud(path: str | Path, allow_nonfinite: bool = False) -> Cloud:
     suffix = path.suffix.lower()
     if suffix not in CLOUD_SUFFIXES:
         raise SessionError(path, f"unknown point cloud format '{suffix}' (use one of {', '.join(CLOUD_SUFFIXES)})")
-    if path.stat().st_size == 0:
+    size = path.stat().st_size
+    if size == 0:
         raise SessionError(path, "point cloud file is empty (0 bytes)")
+    if size > MAX_CLOUD_BYTES:
+        raise SessionError(path, f"point cloud file is {size / 2**30:.1f} GiB, more than the {MAX_CLOUD_BYTES / 2**30:.0f} GiB "
+                                 "this tool loads (thin the cloud or crop it to the work area)")
     try:
         pts, inten = _READERS[suffix](path)
     except SessionError:
@@ -136,60 +141,73 @@ def _pcd_bytes(pts: np.ndarray, inten: np.ndarray | None) -> bytes:
 
 # ---- readers -------------------------------------------------------------
 def _read_open3d(path: Path):
-    """PLY/PCD through open3d's tensor API (keeps an intensity field)."""
+    """PLY/PCD through open3d's tensor API (keeps an intensity field).
+
+    The header is checked first (open3d zero-fills truncated files and only warns);
+    open3d's own warnings are silenced, our SessionError says what is wrong.
+    """
     import open3d as o3d
 
-    _check_header(path)
-    pcd = o3d.t.io.read_point_cloud(str(path))
-    if "positions" not in pcd.point:
-        raise SessionError(path, "file holds no points (or is not a point cloud)")
+    from calib_core.io.cloud_headers import check_cloud_header
+
+    n_declared = check_cloud_header(path)
+    if n_declared == 0:
+        raise SessionError(path, "point cloud holds no points (its header declares 0)")
+    with o3d.utility.VerbosityContextManager(o3d.utility.VerbosityLevel.Error):
+        pcd = o3d.t.io.read_point_cloud(str(path))
+    if "positions" not in pcd.point or len(pcd.point.positions) == 0:
+        raise SessionError(path, "cannot read the points (corrupt file, or not a point cloud)")
     pts = pcd.point.positions.numpy()
     inten = None
-    for key in ("intensity", "intensities", "scalar_intensity"):
-        if key in pcd.point:
-            inten = pcd.point[key].numpy().reshape(-1)
+    keys = {k.lower(): k for k in pcd.point}
+    for key in ("intensity", "intensities", "scalar_intensity", "reflectance"):
+        if key in keys:
+            inten = pcd.point[keys[key]].numpy().reshape(-1)
             break
-    _check_count(path, len(pts))
+    if len(pts) != n_declared:
+        raise SessionError(path, f"file is truncated or corrupt: header says {n_declared} points, read {len(pts)}")
     return pts, inten
 
 
-def _check_header(path: Path) -> None:
-    """open3d prints warnings and returns an empty cloud for bad files: check first."""
-    with open(path, "rb") as f:
-        head = f.read(4096)
-    if path.suffix.lower() == ".ply":
-        if not head.startswith(b"ply"):
-            raise SessionError(path, "not a PLY file (it does not start with 'ply')")
-        if b"end_header" not in head:
-            raise SessionError(path, "PLY header is incomplete (no 'end_header')")
-    else:
-        if b"DATA" not in head or b"FIELDS" not in head:
-            raise SessionError(path, "not a PCD file (no FIELDS/DATA header)")
-
-
-def _check_count(path: Path, n_read: int) -> None:
-    """Detect truncation: compare the header's point count with what was read."""
-    with open(path, "rb") as f:
-        head = f.read(4096).decode("latin-1")
-    m = re.search(r"element vertex (\d+)", head) or re.search(r"\nPOINTS (\d+)", head)
-    if m and int(m.group(1)) != n_read:
-        raise SessionError(path, f"file is truncated or corrupt: header says {m.group(1)} points, read {n_read}")
-    if m and path.suffix.lower() == ".ply" and "binary" in head.split("end_header")[0]:
-        # open3d silently zero-fills a short binary PLY: check the byte count
-        header_len = head.index("end_header") + len("end_header\n")
-        sizes = {"float": 4, "float32": 4, "double": 8, "float64": 8, "uchar": 1, "uint8": 1, "char": 1,
-                 "int8": 1, "ushort": 2, "uint16": 2, "short": 2, "int16": 2, "uint": 4, "uint32": 4,
-                 "int": 4, "int32": 4}
-        vertex_block = head.split("element vertex")[1].split("element")[0]
-        props = re.findall(r"property (\w+) \w+", vertex_block)
-        if props and all(p in sizes for p in props) and "element" not in head.split("element vertex")[1].split("end_header")[0]:
-            need = header_len + int(m.group(1)) * sum(sizes[p] for p in props)
-            if path.stat().st_size < need:
-                raise SessionError(path, f"file is truncated: {path.stat().st_size} bytes, header needs {need}")
-
-
 def _read_text(path: Path):
-    text = path.read_text(encoding="utf-8", errors="strict")
+    try:
+        text = path.read_text(encoding="utf-8-sig", errors="strict")
+    except UnicodeDecodeError:
+        raise SessionError(path, "not a text point cloud (invalid UTF-8: binary data?)") from None
+    fast = _read_text_fast(text)
+    if fast is not None:
+        return fast
+    return _read_text_rows(path, text)
+
+
+def _read_text_fast(text: str):
+    """numpy's C parser for the common, regular file; None when it is irregular (then the
+    row-by-row reader below gives a message with the line number)."""
+    lines = text.splitlines(keepends=True)
+    pos, first = 0, None
+    for i, line in enumerate(lines):  # blank, comment and non-numeric header rows before the data
+        s = line.strip()
+        if not s or s.startswith("#"):
+            continue
+        try:
+            [float(p) for p in re.split(r"[,\s;]+", s) if p]
+        except ValueError:
+            continue
+        first, pos = s, i
+        break
+    if first is None:
+        return None
+    delim = "," if "," in first else ";" if ";" in first else None
+    try:
+        arr = np.loadtxt(io.StringIO("".join(lines[pos:])), delimiter=delim, comments="#", ndmin=2, dtype=np.float64)
+    except ValueError:
+        return None
+    if arr.shape[1] < 3:
+        return None
+    return arr[:, :3], (arr[:, 3] if arr.shape[1] >= 4 else None)
+
+
+def _read_text_rows(path: Path, text: str):
     rows = []
     for lineno, line in enumerate(text.splitlines(), 1):
         s = line.strip()

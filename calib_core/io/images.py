@@ -9,6 +9,8 @@ import numpy as np
 
 from calib_core.errors import SessionError
 
+MAX_IMAGE_BYTES = 512 * 2**20
+MAX_IMAGE_PIXELS = 200_000_000
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".webp")
 VIDEO_SUFFIXES = (".mp4", ".avi", ".mov", ".mkv", ".m4v")
 
@@ -18,21 +20,48 @@ def load_image(path: str | Path) -> np.ndarray:
     path = Path(path)
     if not path.is_file():
         raise SessionError(path, "image file not found")
-    if path.stat().st_size == 0:
+    size = path.stat().st_size
+    if size == 0:
         raise SessionError(path, "image file is empty (0 bytes)")
+    if size > MAX_IMAGE_BYTES:
+        raise SessionError(path, f"image file is {size / 2**20:.0f} MiB: too large to be a camera frame")
     data = np.fromfile(path, dtype=np.uint8)
-    img = cv2.imdecode(data, cv2.IMREAD_UNCHANGED)
+    if data[:8].tobytes() == b"\x89PNG\r\n\x1a\n":
+        if data[-4096:].tobytes().rfind(b"IEND") < 0:
+            raise SessionError(path, "PNG file is truncated (no IEND chunk at its end)")
+        w, h = (int.from_bytes(data[i:i + 4].tobytes(), "big") for i in (16, 20))
+        if w * h > MAX_IMAGE_PIXELS:  # a decompression bomb, or not a camera frame
+            raise SessionError(path, f"PNG claims {w} x {h} pixels: too large to be a camera frame")
+    try:
+        img = cv2.imdecode(data, cv2.IMREAD_UNCHANGED)
+    except cv2.error:
+        img = None
     if img is None:
         raise SessionError(path, "cannot decode image (corrupt, truncated or not an image)")
+    return _to_rgb8(path, img)
+
+
+def _to_rgb8(path: Path, img: np.ndarray) -> np.ndarray:
+    """Any decoded OpenCV image (BGR/BGRA/grey, 8/16-bit or float) -> RGB uint8."""
     if img.dtype == np.uint16:
         img = (img / 257.0).round().astype(np.uint8)
+    elif img.dtype in (np.float32, np.float64):
+        finite = img[np.isfinite(img)]
+        scale = 255.0 if finite.size and finite.max() <= 1.0 else 1.0  # float images in [0, 1] or [0, 255]
+        img = np.clip(np.nan_to_num(img * scale), 0, 255).round().astype(np.uint8)
+    elif img.dtype != np.uint8:
+        raise SessionError(path, f"unsupported pixel type {img.dtype} (use 8- or 16-bit images)")
+    if img.ndim == 3 and img.shape[2] == 1:
+        img = img[:, :, 0]
     if img.ndim == 2:
-        img = cv2.cvtColor(img, cv2.COLOR_GRAY2RGB)
-    elif img.shape[2] == 4:
-        img = cv2.cvtColor(img, cv2.COLOR_BGRA2RGB)
-    else:
-        img = cv2.cvtColor(img, cv2.COLOR_BGR2RGB)
-    return img
+        return cv2.cvtColor(img, cv2.COLOR_GRAY2RGB)
+    if img.ndim != 3 or img.shape[2] not in (2, 3, 4):
+        raise SessionError(path, f"unsupported image layout {img.shape}")
+    if img.shape[2] == 2:  # grey + alpha
+        return cv2.cvtColor(np.ascontiguousarray(img[:, :, 0]), cv2.COLOR_GRAY2RGB)
+    if img.shape[2] == 4:
+        return cv2.cvtColor(img, cv2.COLOR_BGRA2RGB)
+    return cv2.cvtColor(img, cv2.COLOR_BGR2RGB)
 
 
 def save_image(path: str | Path, image_rgb: np.ndarray, jpeg_quality: int = 92) -> None:

@@ -21,13 +21,19 @@ def load_intrinsics(path: str | Path) -> CameraModel:
     raw = path.read_bytes()
     if not raw.strip():
         raise SessionError(path, "intrinsics file is empty")
-    text = raw.decode("utf-8", errors="replace")
-    if text.lstrip().startswith("%YAML") or "opencv-matrix" in text or text.lstrip().startswith("<?xml"):
+    try:
+        text = raw.decode("utf-8-sig")
+    except UnicodeDecodeError:
+        raise SessionError(path, "not a text file (invalid UTF-8): expected ROS camera_info YAML") from None
+    head = text.lstrip()
+    if head.startswith("%YAML:") or "!!opencv-matrix" in text or head.startswith("<?xml"):
         return _load_opencv_storage(path)
     try:
         data = yaml.safe_load(text)
     except yaml.YAMLError as e:
         raise SessionError(path, f"invalid YAML: {_yaml_where(e)}") from None
+    except RecursionError:
+        raise SessionError(path, "invalid YAML: nested too deeply") from None
     if not isinstance(data, dict):
         raise SessionError(path, "expected a ROS camera_info mapping (image_width, camera_matrix, ...)")
     return _from_ros(path, data)
@@ -61,8 +67,8 @@ def _check_K(path: Path, K: np.ndarray, w: int, h: int) -> None:
         raise SessionError(path, f"focal lengths must be positive (fx={K[0, 0]}, fy={K[1, 1]})")
     if abs(K[2, 2] - 1) > 1e-9 or abs(K[1, 0]) > 1e-9 or abs(K[2, 0]) > 1e-9 or abs(K[2, 1]) > 1e-9:
         raise SessionError(path, "camera_matrix must be [fx, s, cx, 0, fy, cy, 0, 0, 1]")
-    if w <= 0 or h <= 0:
-        raise SessionError(path, f"image size must be positive, got {w} x {h}")
+    if not (0 < w <= 100_000 and 0 < h <= 100_000):
+        raise SessionError(path, f"image size {w} x {h} is not plausible (1 to 100000 pixels a side)")
 
 
 def _from_ros(path: Path, data: dict) -> CameraModel:
@@ -70,8 +76,11 @@ def _from_ros(path: Path, data: dict) -> CameraModel:
         w, h = int(data["image_width"]), int(data["image_height"])
     except KeyError as e:
         raise SessionError(path, f"missing '{e.args[0]}'") from None
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):
         raise SessionError(path, "image_width and image_height must be whole numbers") from None
+    if isinstance(data["image_width"], (bool, float)) and data["image_width"] != w or \
+            isinstance(data["image_height"], (bool, float)) and data["image_height"] != h:
+        raise SessionError(path, "image_width and image_height must be whole numbers")
     K = _matrix(path, data, "camera_matrix", 9).reshape(3, 3)
     model = str(data.get("distortion_model", "plumb_bob"))
     if model not in ("plumb_bob", "rational_polynomial") and model:
@@ -86,6 +95,16 @@ def _from_ros(path: Path, data: dict) -> CameraModel:
 
 
 def _load_opencv_storage(path: Path) -> CameraModel:
+    try:
+        return _read_opencv_storage(path)
+    except (cv2.error, SystemError) as e:  # OpenCV's parser throws on malformed files
+        msg = str(e).strip().splitlines()[-1] if isinstance(e, cv2.error) and str(e).strip() else "parse error"
+        raise SessionError(path, f"cannot parse OpenCV FileStorage file ({msg})") from None
+    except (TypeError, ValueError, OverflowError, AttributeError):
+        raise SessionError(path, "OpenCV FileStorage file holds values of the wrong type") from None
+
+
+def _read_opencv_storage(path: Path) -> CameraModel:
     fs = cv2.FileStorage(str(path), cv2.FILE_STORAGE_READ)
     try:
         if not fs.isOpened():
@@ -112,6 +131,8 @@ def _load_opencv_storage(path: Path) -> CameraModel:
         wn, hn = node("image_width", "width"), node("image_height", "height")
         if wn is None or hn is None:
             raise SessionError(path, "missing image_width / image_height")
+        if not (wn.isInt() or wn.isReal()) or not (hn.isInt() or hn.isReal()):
+            raise SessionError(path, "image_width and image_height must be numbers")
         w, h = int(wn.real()), int(hn.real())
     finally:
         fs.release()

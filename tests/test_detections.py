@@ -1,0 +1,115 @@
+"""detections.yaml: read, validate, write, merge (operator entries are never overwritten)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import yaml
+
+from calib_core.detections import (DETECTIONS_FORMAT, detections_path, is_operator_entry, load_detections,
+                                   merge_auto, now_iso, save_detections)
+from calib_core.errors import SessionError
+from calib_core.session import load_session
+
+
+@pytest.fixture
+def session(make_session, tmp_path):
+    return load_session(make_session(tmp_path, n_captures=3, cameras=("cam1", "cam2")))
+
+
+def test_missing_file_is_empty(session):
+    assert load_detections(session) == {}
+
+
+def test_spec_example_reads(session):
+    detections_path(session).write_text(
+        "format: sonar-camera-detections/1\n"
+        "captures:\n"
+        "  p01:\n"
+        "    sonar: {center: [0.1, -0.2, 2.5], status: accepted}\n"
+        "    cam1:  {center: [812.4, 433], status: corrected, who: ana, radius_px: 40}\n"
+        "    cam2:  {status: rejected}\n"
+        "  p02:\n"
+        "    cam1: {status: auto, reason: no sphere}\n")
+    d = load_detections(session)
+    assert d["p01"]["sonar"] == {"center": [0.1, -0.2, 2.5], "status": "accepted"}
+    assert d["p01"]["cam1"]["center"] == [812.4, 433.0] and d["p01"]["cam1"]["who"] == "ana"
+    assert d["p01"]["cam2"] == {"status": "rejected"}
+    assert d["p02"]["cam1"]["status"] == "auto"
+
+
+def test_round_trip_with_numpy_values_in_manifest_order(session):
+    dets = {
+        "p03": {"sonar": {"center": np.array([1.0, 2.0, 3.0]), "status": "auto", "n_inliers": np.int64(42)}},
+        "p01": {"cam1": {"center": [np.float32(10.5), 20.25], "status": "accepted", "history": [{"at": now_iso()}]}},
+        "p02": {},
+    }
+    save_detections(session, dets)
+    text = detections_path(session).read_text()
+    raw = yaml.safe_load(text)
+    assert raw["format"] == DETECTIONS_FORMAT and list(raw["captures"]) == ["p01", "p03"]
+    back = load_detections(session)
+    assert back["p03"]["sonar"]["center"] == [1.0, 2.0, 3.0] and back["p03"]["sonar"]["n_inliers"] == 42
+    assert back["p01"]["cam1"]["center"] == [10.5, 20.25]
+    save_detections(session, back)
+    assert detections_path(session).read_text() == text, "writing what was read changes nothing"
+
+
+@pytest.mark.parametrize("captures,match", [
+    ({"p99": {"sonar": {"status": "auto"}}}, "capture 'p99' is not in session.yaml"),
+    ({"p01": {"lidar": {"status": "auto"}}}, "unknown sensor 'lidar'"),
+    ({"p01": ["sonar"]}, "must map sensor names"),
+    ({"p01": {"sonar": "accepted"}}, "must be a mapping"),
+    ({"p01": {"sonar": {"status": "great", "center": [0, 0, 1]}}}, "status 'great' is not one of"),
+    ({"p01": {"sonar": {"status": "accepted", "center": [0, 0]}}}, "center must be 3 finite numbers"),
+    ({"p01": {"cam1": {"status": "accepted", "center": [0, 0, 1]}}}, "center must be 2 finite numbers"),
+    ({"p01": {"cam1": {"status": "accepted", "center": [".nan", 1]}}}, "center must be 2 finite"),
+    ({"p01": {"cam1": {"status": "accepted", "center": [float("inf"), 1]}}}, "center must be 2 finite"),
+    ({"p01": {"cam1": {"status": "accepted", "center": [True, 1]}}}, "center must be 2 finite"),
+    ({"p01": {"cam1": {"status": "accepted", "center": [10**400, 1]}}}, "center must be 2 finite"),
+    ({"p01": {"cam1": {"status": "corrected"}}}, "'corrected' but has no center"),
+    ({"p01": {"cam1": {"status": ["auto"]}}}, "is not one of"),
+    ([1, 2], "'captures' must map"),
+])
+def test_invalid_entries(session, captures, match):
+    detections_path(session).write_text(yaml.safe_dump({"format": DETECTIONS_FORMAT, "captures": captures}))
+    with pytest.raises(SessionError, match=match) as ei:
+        load_detections(session)
+    assert ei.value.path == detections_path(session)
+
+
+@pytest.mark.parametrize("text,match", [
+    ("format: sonar-camera-detections/9\n", "is not sonar-camera-detections/1"),
+    ("captures: {p01: {sonar: {status: auto}\n", "invalid YAML"),
+    ("just text\n", "expected a YAML mapping"),
+])
+def test_invalid_files(session, text, match):
+    detections_path(session).write_text(text)
+    with pytest.raises(SessionError, match=match):
+        load_detections(session)
+
+
+def test_merge_auto_never_overwrites_operator_entries():
+    existing = {
+        "p01": {"sonar": {"center": [0, 0, 1], "status": "accepted"},
+                "cam1": {"center": [5, 5], "status": "corrected"},
+                "cam2": {"status": "rejected"}},
+        "p02": {"sonar": {"center": [9, 9, 9], "status": "auto"}},
+    }
+    auto = {
+        "p01": {"sonar": {"center": [1, 1, 1], "status": "auto"}, "cam1": {"center": [6, 6]}, "cam2": {"center": [7, 7]}},
+        "p02": {"sonar": {"center": [2, 2, 2], "status": "accepted"}},  # auto results are always 'auto'
+        "p03": {"cam1": {"center": [3, 3], "score": 0.9}},
+    }
+    before = yaml.safe_dump(existing)
+    merged = merge_auto(existing, auto)
+    assert yaml.safe_dump(existing) == before, "input untouched"
+    assert merged["p01"] == existing["p01"]
+    assert merged["p02"]["sonar"] == {"center": [2, 2, 2], "status": "auto"}
+    assert merged["p03"]["cam1"] == {"center": [3, 3], "score": 0.9, "status": "auto"}
+    assert is_operator_entry(merged["p01"]["cam2"]) and not is_operator_entry(merged["p02"]["sonar"])
+    assert not is_operator_entry(None) and not is_operator_entry({})
+
+
+def test_now_iso_is_utc():
+    assert now_iso().endswith("+00:00")
