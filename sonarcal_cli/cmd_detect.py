@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from calib_core.errors import SessionError
 from calib_core.detections import load_detections, save_detections
 from calib_core.pipeline import SessionData, detect_session
 from calib_core.session import load_session
@@ -31,8 +32,7 @@ def run(args) -> int:
     if args.capture:
         unknown = set(args.capture) - {c.id for c in session.captures}
         if unknown:
-            err_console.print(f"error: {session.manifest_path}: no capture {', '.join(sorted(unknown))}", markup=False)
-            return 2
+            raise SessionError(session.manifest_path, f"no capture {', '.join(sorted(unknown))}")
     with progress_bar("detecting") as cb:
         dets = detect_session(SessionData(session), existing, progress=cb, captures=args.capture,
                               redetect_auto=not args.missing_only)
