@@ -8,7 +8,6 @@ hides that capture's plain cloud while the fused one is shown.
 from __future__ import annotations
 
 import numpy as np
-import viser
 
 from app.common import guarded, notify
 from calib_core import fusion
@@ -28,7 +27,7 @@ class FusedPanel:
             self.occlusion = gui.add_checkbox("Occlusion (z-buffer)", True,
                                               hint="Points hidden behind a nearer surface stay uncoloured")
             self.tolerance = gui.add_slider("Depth tolerance (m)", min=0.01, max=0.3, step=0.01, initial_value=0.05)
-            self.run = gui.add_button("Colour cloud", icon=viser.Icon.PALETTE)
+            self.run = gui.add_button("Colour cloud")
             self.show = gui.add_checkbox("Show fused cloud", False)
             self.info = gui.add_markdown("")
         self.run.on_click(guarded(wb.server, "Fusion failed")(self._run))

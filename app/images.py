@@ -23,7 +23,7 @@ from calib_core.pipeline import CLICK_SIGMA_IMAGE_PX, refit_image
 
 MASK_RGB = (0, 255, 0)
 BOARD_MAX_WIDTH = 1280
-PANEL_MAX_WIDTH = 960
+PANEL_MAX_WIDTH = 640
 
 
 def downscale(img: np.ndarray, max_width: int) -> np.ndarray:
@@ -53,8 +53,13 @@ class ImagePanels:
         self.panels: dict = {}  # cam -> (gui image, view button)
         self.boards: dict = {}
         self._masks: OrderedDict = OrderedDict()
+        self._bases: OrderedDict = OrderedDict()
+        self._centres: OrderedDict = OrderedDict()
+        self._shown: dict = {}
+        self.viewing: dict = {}  # client id -> (camera, eye) after "View through"
         for kind in ("selection", "detections", "calibration", "overlay"):
             wb.refresher.on(kind, self.refresh)
+        wb.refresher.on("calibration", self.follow_views)
 
     # ---- building ----------------------------------------------------------
     def rebuild(self) -> None:
@@ -63,12 +68,18 @@ class ImagePanels:
             btn.remove()
         self.panels.clear()
         self._masks.clear()
+        self._bases.clear()
+        self._centres.clear()
+        self._shown.clear()
+        for board in self.boards.values():
+            board.remove()
+        self.boards.clear()
         gui = self.wb.server.gui
         blank = np.full((90, 160, 3), 40, np.uint8)
         with self.folder:
             for cam in self.wb.state.session.cameras:
                 img = gui.add_image(blank, label=cam, format="jpeg", jpeg_quality=85)
-                btn = gui.add_button(f"View through {cam}", icon="camera",
+                btn = gui.add_button(f"View through {cam}",
                                      hint="Look through the camera at its image board; click the sphere centre to correct it")
                 btn.on_click(guarded(self.wb.server)(lambda e, cam=cam: self.view_through(e.client, cam)))
                 self.panels[cam] = (img, btn)
@@ -98,9 +109,14 @@ class ImagePanels:
         cal, son = st.T_cam_sonar(cam), st.entry(cid, "sonar") or {}
         if cal is None or son.get("center") is None:
             return None
-        T, s = cal
-        uv, _d, valid = fusion.project_cloud(np.asarray([son["center"]], float) / s, T, st.camera(cam))
-        return uv[0] if valid[0] else None
+        key = (cid, cam, st.cal_version, tuple(son["center"]))
+        if key not in self._centres:
+            T, s = cal
+            uv, _d, valid = fusion.project_cloud(np.asarray([son["center"]], float) / s, T, st.camera(cam))
+            self._centres[key] = uv[0] if valid[0] else None
+            while len(self._centres) > 256:
+                self._centres.popitem(last=False)
+        return self._centres[key]
 
     def render(self, cid: str, cam: str) -> np.ndarray | None:
         """The full-resolution overlay image of one camera for one capture (None: no image)."""
@@ -116,6 +132,50 @@ class ImagePanels:
         e = st.entry(cid, cam) or {}
         centre = e.get("center") if e.get("status") != "rejected" else None
         return fusion.draw_detection(base, centre, e.get("ellipse_px"), self.reprojected_centre(cid, cam))
+
+    def _base(self, cid: str, cam: str):
+        """(display-size image with the mask overlay, scale factor display/raw), cached; None: no image.
+
+        The mask is tinted at display size (its raw-size mask shrunk with area averaging), which
+        is what the screen shows anyway and keeps corrections fast on 1080p frames.
+        """
+        st = self.wb.state
+        show, r, a = bool(self.show_mask.value), float(self.mask_radius.value), float(self.mask_opacity.value)
+        key = (cid, cam, st.cal_version, show, r, a)
+        if key in self._bases:
+            return self._bases[key]
+        img = st.image(cid, cam)
+        if img is None:
+            return None
+        small = downscale(img, BOARD_MAX_WIDTH)
+        if show and a > 0:
+            m = self.mask(cid, cam, r)
+            if m is not None:
+                if small.shape[:2] != m.shape:
+                    m = cv2.resize(m.astype(np.uint8) * 255, (small.shape[1], small.shape[0]),
+                                   interpolation=cv2.INTER_AREA) > 64
+                small = fusion.overlay(small, m, MASK_RGB, a)
+        self._bases[key] = (small, small.shape[1] / img.shape[1])
+        while len(self._bases) > 6:
+            self._bases.popitem(last=False)
+        return self._bases[key]
+
+    def display_image(self, cid: str, cam: str) -> np.ndarray | None:
+        """What the board and the panel show: the cached base plus the markers (display size)."""
+        base = self._base(cid, cam)
+        if base is None:
+            return None
+        small, f = base
+        e = self.wb.state.entry(cid, cam) or {}
+
+        def px(uv):  # raw pixel -> display pixel (pixel centres at integers in both)
+            return None if uv is None else (np.asarray(uv, float) + 0.5) * f - 0.5
+
+        ell = e.get("ellipse_px")
+        if ell is not None and len(ell) == 5:
+            ell = [*px(ell[:2]), ell[2] * f, ell[3] * f, ell[4]]
+        centre = e.get("center") if e.get("status") != "rejected" else None
+        return fusion.draw_detection(small, px(centre), ell, px(self.reprojected_centre(cid, cam)))
 
     def board_geometry(self, cam: str) -> tuple[np.ndarray, float, float]:
         """(T_cam_board 4x4, render width m, render height m) of a camera's image board."""
@@ -133,7 +193,14 @@ class ImagePanels:
         cid = st.selected
         sc = self.wb.server.scene
         for cam, (panel, _btn) in self.panels.items():
-            out = self.render(cid, cam)
+            e = {k: v for k, v in (st.entry(cid, cam) or {}).items() if k != "history"}
+            son = (st.entry(cid, "sonar") or {}).get("center")
+            key = (cid, st.cal_version, bool(self.show_mask.value), float(self.mask_radius.value),
+                   float(self.mask_opacity.value), float(self.board_depth.value), repr(e), repr(son))
+            if self._shown.get(cam) == key:
+                continue  # nothing this camera shows has changed
+            self._shown[cam] = key
+            out = self.display_image(cid, cam)
             board = self.boards.get(cam)
             if out is None:
                 panel.visible = False
@@ -145,7 +212,7 @@ class ImagePanels:
             panel.visible = True
             T, rw, rh = self.board_geometry(cam)
             wxyz, pos = pose_wxyz_position(T)
-            small = downscale(out, BOARD_MAX_WIDTH)
+            small = out
             if board is None:
                 board = sc.add_image(f"/cams/{cam}/board", small, rw, rh, format="jpeg", jpeg_quality=90,
                                      wxyz=wxyz, position=pos, cast_shadow=False, receive_shadow=False)
@@ -213,3 +280,16 @@ class ImagePanels:
             client.camera.position = eye
             client.camera.look_at = centre
             client.camera.fov = float(2 * np.arctan(half))
+        self.viewing[client.client_id] = (cam, eye)
+
+    def follow_views(self) -> None:
+        """Clients still looking through a camera keep doing so when its pose changes (a new solve)."""
+        clients = self.wb.server.get_clients()
+        for cid, (cam, eye) in list(self.viewing.items()):
+            client = clients.get(cid)
+            if client is None:
+                del self.viewing[cid]
+            elif np.allclose(client.camera.position, eye, atol=1e-3):
+                self.view_through(client, cam)
+            else:
+                del self.viewing[cid]  # the operator has moved away: leave the view alone

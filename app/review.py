@@ -8,7 +8,6 @@ numbers the overlays show.
 from __future__ import annotations
 
 import numpy as np
-import viser
 
 from app.common import client_tag, guarded, notify
 from calib_core.errors import SessionError
@@ -24,19 +23,19 @@ class ReviewPanel:
         g = guarded(wb.server)
         with wb.tab_review:
             self.capture = gui.add_dropdown("Capture", ("-",), initial_value="-")
-            self.prev = gui.add_button("Previous", icon=viser.Icon.ARROW_LEFT)
-            self.next = gui.add_button("Next", icon=viser.Icon.ARROW_RIGHT)
+            self.prev = gui.add_button("Previous")
+            self.next = gui.add_button("Next")
             self.sensor = gui.add_dropdown("Apply to", (ALL,), initial_value=ALL)
-            self.accept = gui.add_button("Accept", icon=viser.Icon.CHECK, color="green")
-            self.reject = gui.add_button("Reject", icon=viser.Icon.X, color="red")
-            self.undo = gui.add_button("Undo", icon=viser.Icon.ARROW_BACK_UP)
+            self.accept = gui.add_button("Accept", color="green")
+            self.reject = gui.add_button("Reject", color="red")
+            self.undo = gui.add_button("Undo")
             self.details = gui.add_markdown("")
             with gui.add_folder("Correct the sonar centre", expand_by_default=False):
-                self.pick = gui.add_button("Pick sonar centre in 3D", icon=viser.Icon.POINTER,
+                self.pick = gui.add_button("Pick sonar centre in 3D",
                                            hint="Then click on the sphere's points in the 3D view; refits near it")
                 self.handle_on = gui.add_checkbox("Drag handle at sonar centre", False,
                                                   hint="Drag the handle to the sphere; refits near it on release")
-            self.detect = gui.add_button("Detect again (automatic entries)", icon=viser.Icon.FOCUS_2)
+            self.detect = gui.add_button("Detect again (automatic entries)")
             self.table = gui.add_markdown("")
         self.capture.on_update(g(self._on_capture))
         self.prev.on_click(g(lambda e: self.wb.state.step(-1, self.order())))
@@ -46,12 +45,13 @@ class ReviewPanel:
         self.undo.on_click(g(self._undo))
         self.pick.on_click(g(self._start_pick))
         self.detect.on_click(g(lambda e: self.wb.start_detection(None, redetect_auto=True)))
-        self.handle_on.on_update(g(lambda e: self.refresh_handle()))
+        self.handle_on.on_update(lambda e: wb.refresher.mark("handle"))
         self.handle = None
         self._dragging = False
         self._order: list[str] = []
         for kind in ("detections", "calibration", "selection"):
             wb.refresher.on(kind, self.refresh)
+        wb.refresher.on("handle", self.refresh_handle)
 
     # ---- data ------------------------------------------------------------
     def rows(self) -> list[dict]:
@@ -70,7 +70,8 @@ class ReviewPanel:
                     if uv is not None:
                         res = float(np.linalg.norm(np.asarray(e["center"], float) - uv))
                         row["residual"] = max(row["residual"] or 0.0, res)
-                row["sensors"][sensor] = {"status": status, "score": e.get("score"), "residual_px": res}
+                row["sensors"][sensor] = {"status": status, "score": e.get("score"), "residual_px": res,
+                                          "found": e.get("center") is not None}
                 if status == "rejected":
                     row["rejected"] = True
                 elif e.get("center") is None:
@@ -209,7 +210,9 @@ class ReviewPanel:
                     cells.append("-")
                     continue
                 txt = c["status"]
-                if c["score"] is not None:
+                if not c["found"] and c["status"] not in ("rejected", "missing"):
+                    txt += " (not found)"
+                elif c["score"] is not None:
                     txt += f" {c['score']:.2f}"
                 if c["residual_px"] is not None:
                     txt += f" · {c['residual_px']:.1f} px"

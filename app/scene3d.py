@@ -58,6 +58,7 @@ class Scene3D:
         self.cloud_nodes: dict = {}
         self.cloud_colour_key: dict = {}
         self.frustums: dict = {}
+        self.cam_frames: dict = {}
         self.hidden: set = set()  # captures whose plain cloud is hidden (shown fused instead)
         for h in (self.colour_by, self.point_size, self.only_selected):
             h.on_update(lambda _e: wb.refresher.mark("clouds"))
@@ -76,8 +77,9 @@ class Scene3D:
         sc = self.wb.server.scene
         for node in list(self.cloud_nodes.values()) + list(self.cloud_toggles.values()):
             node.remove()
-        for h in self.frustums.values():
+        for h in list(self.frustums.values()) + list(self.cam_frames.values()):
             h.remove()
+        self.cam_frames.clear()
         self.cloud_nodes.clear(), self.cloud_toggles.clear(), self.frustums.clear(), self.cloud_colour_key.clear()
         for name in ("/centres", "/selected_sphere", "/rays", "/residuals", "/gt"):
             try:
@@ -94,17 +96,20 @@ class Scene3D:
                 self.cloud_toggles[cap.id] = cb
 
     def home_view(self, client) -> None:
-        """Look at the selected capture's cloud from above and behind the sonar origin."""
+        """Frame the sonar origin and the selected capture's cloud, seen from behind, aside and above."""
         st = self.wb.state
         if st.session is None or st.selected is None:
             return
         target = np.median(st.cloud(st.selected).points_m, axis=0)
         dist = max(1.0, float(np.linalg.norm(target)))
-        v = target / max(float(np.linalg.norm(target)), 1e-9)
+        v = target / dist
+        side = np.cross(v, (0.0, 0.0, 1.0))
+        side = side / np.linalg.norm(side) if np.linalg.norm(side) > 1e-6 else np.array([0.0, 1.0, 0.0])
+        mid = 0.5 * target
         with client.atomic():
             client.camera.up_direction = (0.0, 0.0, 1.0)
-            client.camera.position = target - 1.6 * dist * v + np.array([0.0, 0.0, 0.9 * dist])
-            client.camera.look_at = target
+            client.camera.position = mid - 1.2 * dist * v + 0.9 * dist * side + np.array([0.0, 0.0, 0.9 * dist])
+            client.camera.look_at = mid
 
     # ---- clouds --------------------------------------------------------------
     def _colours(self, cid: str, cloud, mode: str) -> np.ndarray:
@@ -176,28 +181,34 @@ class Scene3D:
         sc = self.wb.server.scene
         st = self.wb.state
         rays, res = [], []
-        for k, cam in enumerate(st.session.cameras):
+        for cam in st.session.cameras:
             cal = st.T_cam_sonar(cam)
             if cal is None:
                 continue
             T_world_cam = camera_pose_in_cloud_frame(*cal)
-            model = st.camera(cam)
+            uv, X = [], []
             for cap in st.session.captures:
                 d = dets.get(cap.id, {})
                 img, son = d.get(cam) or {}, d.get("sonar") or {}
                 if img.get("center") is None or son.get("center") is None or "rejected" in (img.get("status"), son.get("status")):
                     continue
-                o = T_world_cam[:3, 3]
-                w = T_world_cam[:3, :3] @ model.rays(np.asarray([img["center"]], float))[0]
-                X = np.asarray(son["center"], float)
-                along = float(w @ (X - o))
+                uv.append(img["center"])
+                X.append(son["center"])
+            if not uv:
+                continue
+            o = T_world_cam[:3, 3]
+            W = st.camera(cam).rays(np.asarray(uv, float)) @ T_world_cam[:3, :3].T  # unit rays, world frame
+            for w, x in zip(W, np.asarray(X, float)):
+                along = float(w @ (x - o))
                 p = o + max(along, 0.0) * w  # closest point of the ray to the sonar centre
                 rays.append([o, o + max(along, 0.1) * 1.15 * w])
-                res.append([p, X])
+                res.append([p, x])
         if rays:
-            sc.add_line_segments("/rays", np.asarray(rays, np.float32), (120, 120, 255), thickness=0.003,
+            sc.add_line_segments("/rays", np.asarray(rays, np.float32), (120, 120, 255), thickness=1.5,
+                                 thickness_units="screen",
                                  visible=self.show_rays.value)
-            sc.add_line_segments("/residuals", np.asarray(res, np.float32), (255, 0, 0), thickness=0.008,
+            sc.add_line_segments("/residuals", np.asarray(res, np.float32), (255, 0, 0), thickness=3.0,
+                                 thickness_units="screen",
                                  visible=self.show_rays.value)
         else:
             for name in ("/rays", "/residuals"):
@@ -245,7 +256,10 @@ class Scene3D:
         for k, cam in enumerate(st.session.cameras):
             model = st.camera(cam)
             wxyz, pos = pose_wxyz_position(self.camera_pose(cam))
-            sc.add_frame(f"/cams/{cam}", show_axes=False, wxyz=wxyz, position=pos, visible=self.show_cams.value)
+            frame = self.cam_frames.get(cam)
+            if frame is None:  # created once: its children (frustum, image board) follow its pose
+                frame = self.cam_frames[cam] = sc.add_frame(f"/cams/{cam}", show_axes=False)
+            frame.wxyz, frame.position, frame.visible = wxyz, pos, self.show_cams.value
             calibrated = st.T_cam_sonar(cam) is not None
             self.frustums[cam] = sc.add_camera_frustum(
                 f"/cams/{cam}/frustum", fov=2 * np.arctan(model.height_px / (2 * model.fy)),

@@ -49,17 +49,18 @@ class Workbench:
         self.server.gui.main_panel.dock_right()  # beside the 3D view, so the view is never covered
         self.refresher = Refresher(on_error=lambda kind, e: notify(self.server, None, f"Display of {kind} failed", error_text(e)))
         self.jobs = JobRunner(on_progress=self._progress, on_error=self._job_error)
+        self._pending_detection: list[str] = []
 
         gui = self.server.gui
         self.title = gui.add_markdown("**sonarcal workbench**: no session open")
         self.progress_label = gui.add_markdown("", visible=False)
         self.progress = gui.add_progress_bar(0.0, visible=False, animated=True)
         tabs = gui.add_tab_group()
-        self.tab_review = tabs.add_tab("Review", icon=viser.Icon.LIST_CHECK)
-        self.tab_solve = tabs.add_tab("Solve", icon=viser.Icon.MATH_FUNCTION)
-        self.tab_view = tabs.add_tab("View", icon=viser.Icon.EYE)
-        self.tab_fused = tabs.add_tab("Fused", icon=viser.Icon.PALETTE)
-        self.tab_session = tabs.add_tab("Session", icon=viser.Icon.FOLDER)
+        self.tab_review = tabs.add_tab("Review")
+        self.tab_solve = tabs.add_tab("Solve")
+        self.tab_view = tabs.add_tab("View")
+        self.tab_fused = tabs.add_tab("Fused")
+        self.tab_session = tabs.add_tab("Session")
 
         self.scene3d = Scene3D(self)
         self.images = ImagePanels(self)
@@ -69,6 +70,7 @@ class Workbench:
         self.session_panel = SessionPanel(self)
 
         self.refresher.on("session", self._on_session)
+        self.refresher.on("after-session", self._after_session)
         self.state.subscribe(self.refresher.mark)
         self.server.on_client_connect(self._on_connect)
         if session_path is not None:
@@ -88,11 +90,13 @@ class Workbench:
         return f"http://{self.host}:{self.port}/"
 
     def stop(self) -> None:
+        self.refresher.wait_idle(10)
         self.refresher.stop()
         self.server.stop()
 
     def wait_idle(self, timeout: float = 60.0) -> bool:
         """Block until running jobs and pending display refreshes are done (tests, benchmarks)."""
+        self.refresher.wait_idle(timeout)  # a session refresh may start the detection job
         self.jobs.join(timeout)
         return self.refresher.wait_idle(timeout)
 
@@ -100,9 +104,7 @@ class Workbench:
     def open_session(self, path, check_root: bool = False) -> None:
         """Open a session folder; detect what detections.yaml lacks in the background."""
         self.state.open(path, check_root=check_root)
-        missing = self.state.missing()
-        if missing:
-            self.start_detection(missing, redetect_auto=False)
+        self._pending_detection = self.state.missing()  # started once the session is on screen
 
     def start_detection(self, captures=None, redetect_auto: bool = False) -> None:
         from calib_core.pipeline import detect_session
@@ -125,15 +127,21 @@ class Workbench:
                                   f"cameras {', '.join(s.cameras)})")
         for w in self.state.warnings:
             notify(self.server, None, "Session warning", w, color="yellow")
-        self.scene3d.rebuild()
         self.images.rebuild()
+        self.scene3d.rebuild()
         self.review.rebuild()
         self.solve.refresh()
         self.fused.rebuild()
         self.session_panel.refresh()
-        self.refresher.mark("detections", "calibration", "selection")
+        self.refresher.mark("detections", "calibration", "selection", "after-session")
         for client in self.server.get_clients().values():
             self.scene3d.home_view(client)
+
+    def _after_session(self) -> None:
+        """Once the new session is on screen, detect what detections.yaml lacks (in the background)."""
+        pending, self._pending_detection = self._pending_detection, []
+        if pending:
+            self.start_detection(pending, redetect_auto=False)
 
     def _on_connect(self, client: viser.ClientHandle) -> None:
         self.scene3d.home_view(client)

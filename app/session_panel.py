@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import json
 
-import viser
 
 from app.common import guarded, notify
 from app.uploads import MAX_UPLOAD_BYTES, safe_unpack_zip
@@ -21,11 +20,11 @@ class SessionPanel:
         with wb.tab_session:
             self.info = gui.add_markdown("No session open.")
             self.path = gui.add_text("Session folder", "", hint="A folder holding session.yaml (on the server's disk)")
-            self.open_btn = gui.add_button("Open folder", icon=viser.Icon.FOLDER)
+            self.open_btn = gui.add_button("Open folder")
             self.upload = gui.add_upload_button(f"Upload zipped session (max {MAX_UPLOAD_BYTES // 2**20} MB)",
-                                                icon=viser.Icon.UPLOAD, mime_type="application/zip")
-            self.dl_cal = gui.add_button("Download calibration.json", icon=viser.Icon.DOWNLOAD)
-            self.dl_det = gui.add_button("Download detections.yaml", icon=viser.Icon.DOWNLOAD)
+                                                mime_type="application/zip")
+            self.dl_cal = gui.add_button("Download calibration.json")
+            self.dl_det = gui.add_button("Download detections.yaml")
         self.open_btn.on_click(g(self._open_path))
         self.upload.on_upload(g(self._on_upload))
         self.dl_cal.on_click(guarded(wb.server, "Download failed")(lambda e: self._download(e, "calibration")))

@@ -6,23 +6,16 @@ calib_core.results.save_calibration), so the browser and ``sonarcal calibrate`` 
 
 from __future__ import annotations
 
-import math
-
 import cv2
 import numpy as np
-import viser
 
 from app.common import guarded, notify
-from calib_core.geometry import rotvec_from_T
+from calib_core.solve.summary import pose_rows, residual_rows, scale_line, table_i_rows
 
 BAR_RGB = [(255, 120, 0), (0, 150, 150), (150, 60, 220), (120, 120, 0)]
 
 
-def _f(x, fmt="{:.3f}", none="-"):
-    return none if x is None or (isinstance(x, float) and not math.isfinite(x)) else fmt.format(x)
-
-
-def residual_rows(cal: dict) -> dict[str, list[dict]]:
+def capture_residuals(cal: dict) -> dict[str, list[dict]]:
     """{camera: [per-capture rows with capture, residual_norm_px, used, flags]} from a calibration."""
     out = {}
     for cam, c in (cal or {}).get("cameras", {}).items():
@@ -36,7 +29,7 @@ def residual_rows(cal: dict) -> dict[str, list[dict]]:
 def residual_plot(cal: dict, width: int = 900, height: int = 360) -> np.ndarray | None:
     """Bar chart (RGB image) of each capture's reprojection residual (px), per camera;
     captures the solver left out or flagged are drawn hatched red."""
-    rows = residual_rows(cal)
+    rows = capture_residuals(cal)
     caps = []
     for rs in rows.values():
         for r in rs:
@@ -75,39 +68,33 @@ def residual_plot(cal: dict, width: int = 900, height: int = 360) -> np.ndarray 
     return img
 
 
+def md_table(cols, rows) -> str:
+    """A markdown table (cells with '|' escaped)."""
+    esc = lambda v: str(v).replace("|", "\\|")  # noqa: E731
+    out = ["| " + " | ".join(esc(c) for c in cols) + " |", "|" + "---|" * len(cols)]
+    out += ["| " + " | ".join(esc(c) for c in r) + " |" for r in rows]
+    return "\n".join(out)
+
+
 def describe(cal: dict) -> str:
-    """Markdown summary: pose and uncertainty per camera, range scale, outliers, Table I."""
+    """Markdown: the CLI's tables (calib_core.solve.summary): pose and uncertainty per camera
+    (transposed to fit the panel), range scale, per-capture residuals, outliers, Table I."""
     if not cal:
         return "No calibration yet: press **Solve**."
-    out = []
-    for cam, c in cal.get("cameras", {}).items():
-        T = np.asarray(c["T_cam_sonar"], float)
-        rv = np.degrees(rotvec_from_T(T))
-        t = T[:3, 3]
-        cov = c.get("covariance")
-        sd = np.sqrt(np.clip(np.diag(np.asarray(cov, float)), 0, None)) if cov is not None else None
-        out.append(f"**{cam}**: rms {_f(c.get('rms_reprojection_px'), '{:.2f}')} px over "
-                   f"{len(c.get('captures_used') or [])} captures")
-        out.append(f"- translation (m): {t[0]:+.4f} {t[1]:+.4f} {t[2]:+.4f}"
-                   + (f" ± {1000 * sd[3]:.1f} / {1000 * sd[4]:.1f} / {1000 * sd[5]:.1f} mm" if sd is not None else ""))
-        out.append(f"- rotation vector (deg): {rv[0]:+.3f} {rv[1]:+.3f} {rv[2]:+.3f}"
-                   + (" ± " + " / ".join(f"{math.degrees(v):.3f}" for v in sd[:3]) if sd is not None else ""))
-        out.append(f"- sonar origin from {cam}: {np.linalg.norm(t):.4f} m")
-        for r in residual_rows(cal).get(cam, []):
-            for fl in r.get("flags") or []:
-                out.append(f"- ⚠ {r['capture']}: {fl.get('reason', fl) if isinstance(fl, dict) else fl}")
-    scale = cal.get("range_scale")
-    if isinstance(scale, dict):
-        out.append(f"\n**Sound-speed (range) scale**: {_f(scale.get('value'), '{:.4f}')} ± {_f(scale.get('sigma'), '{:.4f}')}"
-                   + (f" ({scale['note']})" if scale.get("note") else ""))
-    elif scale is not None:
-        out.append(f"\n**Sound-speed (range) scale**: {_f(float(scale), '{:.4f}')}")
-    tab = cal.get("table_i")
-    if isinstance(tab, dict) and tab.get("pairs"):
-        out.append("\n**Table I** (baselines, m)\n\n| pair | estimated | measured | error % |\n|---|---|---|---|")
-        for pair, r in tab["pairs"].items():
-            out.append(f"| {pair} | {_f(r.get('estimated_m'), '{:.4f}')} | {_f(r.get('measured_m'), '{:.4f}')} | "
-                       f"{_f(r.get('error_pct'), '{:+.2f}')} |")
+    cols, rows = pose_rows(cal)
+    out = ["**Pose T_cam_sonar** (sonar origin in the camera frame)", "",
+           md_table(["", *[r[0] for r in rows]], [[c, *[r[i] for r in rows]] for i, c in enumerate(cols) if i > 0]),
+           "", f"**Range scale**: {scale_line(cal)}"]
+    for cam in cal["cameras"]:
+        cols, rows = residual_rows(cal, cam)
+        keep = [cols.index(c) for c in ("capture", "used", "residual px", "Mahalanobis", "flags")]
+        out += ["", f"**{cam}: residuals per capture**", "", md_table([cols[i] for i in keep], [[r[i] for i in keep] for r in rows])]
+        for o in cal["cameras"][cam].get("outliers") or []:
+            for why in o.get("reasons", []):
+                out.append(f"- ⚠ {cam} {o['capture']}: {why}")
+    ti = table_i_rows(cal)
+    if ti:
+        out += ["", "**Table I** (independent solves, mm)", "", md_table(*ti)]
     for w in cal.get("warnings") or []:
         out.append(f"- ⚠ {w}")
     return "\n".join(out)
@@ -118,8 +105,11 @@ class SolvePanel:
         self.wb = wb
         gui = wb.server.gui
         with wb.tab_solve:
-            self.button = gui.add_button("Solve", icon=viser.Icon.PLAYER_PLAY, color="blue",
+            self.button = gui.add_button("Solve", color="blue",
                                          hint="Detect what is not validated, solve every camera, save results/calibration.json")
+            self.scale = gui.add_checkbox("Estimate range scale", False,
+                                          hint="Sound-speed error (like 'sonarcal calibrate --scale'); needs two cameras and a stereo transform")
+            self.robust = gui.add_dropdown("Robust loss", ("none", "huber", "cauchy"), initial_value="none")
             self.status = gui.add_markdown("")
             self.summary = gui.add_markdown(describe(None))
             self.plot = gui.add_image(np.full((40, 200, 3), 255, np.uint8), label="Residuals per capture", visible=False)
@@ -133,13 +123,18 @@ class SolvePanel:
 
         def job(progress):
             session, dets, _cal = st.snapshot()
-            result = calibrate_session(session, dets, progress=progress)
+            result = calibrate_session(session, dets, self.options(), progress=progress)
             st.set_calibration(result)
             notify(self.wb.server, None, "Solved", "results/calibration.json saved", color="green", seconds=4)
 
         self.wb.jobs.start("solve", job)
         self.button.disabled = True
         self.status.content = "Solving… (the workbench stays usable)"
+
+    def options(self) -> dict:
+        """The options dict 'sonarcal calibrate' builds from its flags (same defaults)."""
+        return {"estimate_scale": bool(self.scale.value), "robust": None if self.robust.value == "none" else self.robust.value,
+                "detect": True, "leave_one_out": True}
 
     def job_finished(self, name: str) -> None:
         if name == "solve":

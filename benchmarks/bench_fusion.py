@@ -45,6 +45,7 @@ def scene_volume(n: int, rng) -> np.ndarray:
 
 
 CPU_MS: dict[str, float] = {}
+BEST_MS: dict[str, float] = {}
 
 
 def timed(fn, repeats, key=None):
@@ -59,6 +60,7 @@ def timed(fn, repeats, key=None):
         cpu.append(time.process_time() - c0)
     if key:
         CPU_MS[key] = statistics.median(cpu) * 1000.0
+        BEST_MS[key] = min(times) * 1000.0
     return statistics.median(times) * 1000.0, out
 
 
@@ -95,19 +97,19 @@ def main() -> int:
                  F.CameraView("cam2", image, cam, T_from_rotvec([0, 0.1, 0], [-0.4, 0, 0]) @ T_cam_sonar)]
         t_multi, _ = timed(lambda: F.colour_cloud_multi(P, views), max(3, args.repeats // 2))
         rows.append((name, len(P), int(valid.sum()), float(ok.mean()), t_proj, t_mask, t_over, t_col, t_col_fixed, t_all,
-                     CPU_MS[name], t_multi))
+                     BEST_MS[name], CPU_MS[name], t_multi))
 
     print(f"fusion benchmark: {args.points:,} points, 1920x1080, mask radius {args.radius:g} px, median of {args.repeats} "
           f"(cpus: {os.cpu_count()}, load: {os.getloadavg()[0]:.2f})")
     head = ["scene", "points", "in view", "coloured", "project", "mask", "overlay", "colour auto",
-            "colour r=2", "project+mask+colour", "(CPU time)", "2-cam colour"]
+            "colour r=2", "project+mask+colour", "(best run)", "(CPU time)", "2-cam colour"]
     print("| " + " | ".join(head) + " |")
     print("|" + "---|" * len(head))
     for r in rows:
         print(f"| {r[0]} | {r[1]:,} | {r[2]:,} | {r[3]:.0%} | " + " | ".join(f"{t:.1f} ms" for t in r[4:]) + " |")
-    worst, worst_cpu = max(r[9] for r in rows), max(r[10] for r in rows)
-    print(f"target project+mask+colour < 150 ms: {'met' if worst < 150 else 'MISSED'} (worst {worst:.1f} ms wall, "
-          f"{worst_cpu:.1f} ms CPU)")
+    worst, best, worst_cpu = max(r[9] for r in rows), max(r[10] for r in rows), max(r[11] for r in rows)
+    print(f"target project+mask+colour < 150 ms: {'met' if worst < 150 else 'MISSED'} (median {worst:.1f} ms wall; "
+          f"best run {best:.1f} ms; {worst_cpu:.1f} ms CPU; worst scene)")
     return 0
 
 

@@ -12,6 +12,7 @@ from __future__ import annotations
 import copy
 import datetime as _dt
 import math
+import re
 from pathlib import Path
 
 from calib_core.errors import SessionError, short_repr
@@ -19,6 +20,7 @@ from calib_core.io.atomic import atomic_write_yaml
 
 DETECTIONS_FORMAT = "sonar-camera-detections/1"
 DETECTIONS_FILE = "detections.yaml"
+_YAML11_EXPONENT = re.compile(r"^[-+]?(\d+\.?\d*|\.\d+)[eE][-+]?\d+$")
 STATUSES = ("auto", "accepted", "corrected", "rejected")
 OPERATOR_STATUSES = ("accepted", "corrected", "rejected")
 
@@ -78,6 +80,8 @@ def _check_entry(path: Path, what: str, e, dim: int) -> dict:
 
 
 def _finite_number(v) -> bool:
+    if isinstance(v, str) and _YAML11_EXPONENT.match(v.strip()):
+        v = float(v)  # a hand-written 1e-3 is a string to YAML 1.1
     if isinstance(v, bool) or not isinstance(v, (int, float)):
         return False
     try:

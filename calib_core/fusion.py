@@ -12,6 +12,7 @@ maps them into the OpenCV camera frame; ``uv_px`` are raw (distorted) pixel
 coordinates with pixel centres at integers; ``depth_m`` is the camera-frame z.
 Images are RGB uint8 (H,W,3). Everything is vectorised numpy/OpenCV so that a
 1M-point cloud at 1920x1080 takes tens of milliseconds (benchmarks/bench_fusion.py).
+The z-buffer machinery lives in :mod:`calib_core.fusion_zbuffer`, drawing in :mod:`calib_core.fusion_draw`.
 """
 
 from __future__ import annotations
@@ -23,12 +24,27 @@ import numpy as np
 
 from calib_core.camera import CameraModel
 from calib_core.fusion_draw import draw_detection, draw_ellipse, draw_marker, overlay  # noqa: F401  (public API)
+from calib_core.fusion_zbuffer import CELL_SHIFT, depth_buffer, disk_kernel, pixel_index, splatted_zbuffer  # noqa: F401  (depth_buffer: public API)
 
 _MAX_REMAP_COLS = 4096  # cv2.remap needs maps smaller than SHRT_MAX per side
 
 
 # ---------------------------------------------------------------- projection
 def _r2_limit(cam: CameraModel) -> float:
+    """Cached :func:`_r2_limit_uncached` (thread-safe enough: a race only recomputes)."""
+    key = (cam.width_px, cam.height_px, cam.K.tobytes(), cam.dist.tobytes())
+    value = _R2_CACHE.get(key)
+    if value is None:
+        if len(_R2_CACHE) > 64:
+            _R2_CACHE.clear()
+        value = _R2_CACHE[key] = _r2_limit_uncached(cam)
+    return value
+
+
+_R2_CACHE: dict = {}
+
+
+def _r2_limit_uncached(cam: CameraModel) -> float:
     """Largest normalised r^2 that any pixel of the image sees (plus 5 %).
 
     Polynomial distortion folds points far outside the field of view back into
@@ -121,25 +137,6 @@ def _project(points_sonar_m, T_cam_sonar, cam: CameraModel, margin_px: float = 0
     return u, v, z, valid, x, y
 
 
-def _pixels(uv_px: np.ndarray, valid: np.ndarray, width: int, height: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Nearest pixel (ui, vi) of each point and its flat index (``width*height`` for invalid points)."""
-    with np.errstate(invalid="ignore"):
-        ui = (uv_px[:, 0] + np.float32(0.5)).astype(np.int32)
-        vi = (uv_px[:, 1] + np.float32(0.5)).astype(np.int32)
-    np.clip(ui, 0, width - 1, out=ui)
-    np.clip(vi, 0, height - 1, out=vi)
-    pix = vi.astype(np.int64) * width + ui
-    pix[~valid] = width * height
-    return ui, vi, pix
-
-
-def _disk(radius_px: float) -> np.ndarray:
-    """Structuring element: the pixel offsets within ``radius_px`` (Euclidean)."""
-    r = int(np.floor(radius_px))
-    yy, xx = np.mgrid[-r:r + 1, -r:r + 1]
-    return (xx * xx + yy * yy <= radius_px * radius_px + 1e-9).astype(np.uint8)
-
-
 # -------------------------------------------------------------- segmentation
 def segmentation_mask(cam: CameraModel, uv_px: np.ndarray, radius_px: float,
                       valid: np.ndarray | None = None) -> np.ndarray:
@@ -158,7 +155,7 @@ def segmentation_mask(cam: CameraModel, uv_px: np.ndarray, radius_px: float,
     w, h = cam.width_px, cam.height_px
     uv = np.asarray(uv_px).reshape(-1, 2)
     ok = cam.in_image(uv) if valid is None else np.asarray(valid, bool).reshape(-1) & np.isfinite(uv[:, 0])
-    _, _, pix = _pixels(uv, ok, w, h)
+    _, _, pix = pixel_index(uv, ok, w, h)
     occ = np.zeros(h * w + 1, np.uint8)
     occ[pix] = 1
     occ = occ[:-1].reshape(h, w)
@@ -166,132 +163,12 @@ def segmentation_mask(cam: CameraModel, uv_px: np.ndarray, radius_px: float,
     if r < 1.0:
         return occ.astype(bool)
     if r <= 8.0:
-        return cv2.dilate(occ, _disk(r)).view(bool)
+        return cv2.dilate(occ, disk_kernel(r)).view(bool)
     dist = cv2.distanceTransform(np.where(occ > 0, 0, 255).astype(np.uint8), cv2.DIST_L2, cv2.DIST_MASK_5)
     return dist <= r
 
 
 # ------------------------------------------------------------------ colouring
-def depth_buffer(uv_px: np.ndarray, depth_m: np.ndarray, valid: np.ndarray, width: int, height: int,
-                 splat_radius_px="auto", layer_m: float = 0.05) -> np.ndarray:
-    """(H,W) float32 nearest depth (m) per pixel (inf where empty), splatted.
-
-    ``splat_radius_px``: a number splats every point by that radius (a disk up to 2 px, a
-    square beyond: see :func:`_splat_kernel`); "auto" adapts it to the local spacing of the
-    nearest surface (:func:`_adaptive_splat`, with ``layer_m`` its depth layer).
-    """
-    uv = np.asarray(uv_px).reshape(-1, 2)
-    valid = np.asarray(valid, bool)
-    _, _, pix = _pixels(uv, valid, width, height)
-    z, _ = _splatted(pix, np.asarray(depth_m, np.float32), width, height, splat_radius_px, layer_m)
-    return z[:-1].reshape(height, width)
-
-
-def _zimage(pix, depth32, width, height) -> np.ndarray:
-    z = np.full(height * width + 1, np.inf, np.float32)
-    np.minimum.at(z, pix, depth32)
-    return z
-
-
-def _splat_kernel(r: int) -> np.ndarray:
-    """Splat footprint: a disk up to 2 px, a square beyond (OpenCV erodes squares ~5x faster;
-    the square's corners reach 1.41 r, which only makes occlusion a little more conservative)."""
-    return _disk(r) if r <= 2 else np.ones((2 * r + 1, 2 * r + 1), np.uint8)
-
-
-_RADII = np.array([1, 2, 3, 4, 6, 8, 11, 16, 24])
-_CELL_SHIFT = 5  # 32-px cells
-
-
-def _splatted(pix, depth32, width, height, splat_radius_px, layer_m) -> tuple[np.ndarray, np.ndarray | None]:
-    """Flat (H*W+1,) splatted z-buffer (the last slot, for invalid points, is inf) and the
-    per-cell radius grid of the adaptive splat (None for a fixed radius)."""
-    z = _zimage(pix, depth32, width, height)
-    img = z[:-1].reshape(height, width)
-    r_cell = None
-    if isinstance(splat_radius_px, str):
-        if splat_radius_px != "auto":
-            raise ValueError(f"splat_radius_px must be a number or 'auto', got {splat_radius_px!r}")
-        r_cell = _adaptive_splat(img, layer_m)
-    elif int(splat_radius_px) > 0:
-        img[:] = cv2.erode(img, _splat_kernel(int(splat_radius_px)), borderType=cv2.BORDER_CONSTANT, borderValue=np.inf)
-    z[-1] = np.inf
-    return z, r_cell
-
-
-def _front_counts(padded: np.ndarray, g: int, layer_m: float) -> np.ndarray:
-    """Per g-px cell of a padded z-image: occupied pixels within layer_m of the cell's nearest depth."""
-    gh, gw = padded.shape[0] // g, padded.shape[1] // g
-    blocks = padded[:gh * g, :gw * g].reshape(gh, g, gw, g)
-    zc = blocks.min(axis=(1, 3))
-    with np.errstate(invalid="ignore"):
-        front = blocks <= (zc + np.float32(layer_m))[:, None, :, None]
-    front &= np.isfinite(zc)[:, None, :, None]
-    return np.count_nonzero(front, axis=(1, 3))
-
-
-def _adaptive_splat(img, layer_m) -> np.ndarray:
-    """Splat the (H,W) z-image in place with a radius that follows the nearest surface's
-    spacing; returns the radius per 32-px cell (0: empty cell).
-
-    Per 32-px cell, the occupied pixels within ``layer_m`` of the cell's nearest depth form
-    the front layer; their spacing is ~ 32 / sqrt(count), and the cell's pixels are splatted
-    by 0.75 x that spacing (a square grid's widest hole is 0.71 x spacing), rounded up to a
-    few fixed radii (1-24 px). So a sparse front surface is closed even with a dense wall
-    behind it. Fewer than 3 front pixels: the spacing is read on 64-px cells; fewer than 3
-    there too, the points are isolated (noise, spurious returns) and get radius 1, so they
-    do not hide what lies behind them.
-    Approximations: a front surface covering only part of a cell (silhouettes, thin parts)
-    looks sparser and is splatted wider, hiding a few more background points near its edges;
-    points sharing a pixel count once (dense surfaces get radius 1); the commonest radius
-    (if <= 3 px) is applied to every cell in one pass, for speed.
-    """
-    height, width = img.shape
-    g = 1 << _CELL_SHIFT
-    gw, gh = -(-width // g) + 1, -(-height // g) + 1  # one spare row/column: the 64-px grid fits
-    gw, gh = gw + gw % 2, gh + gh % 2
-    padded = np.full((gh * g, gw * g), np.inf, np.float32)
-    padded[:height, :width] = img
-    blocks = padded.reshape(gh, g, gw, g)
-    n = _front_counts(padded, g, layer_m)
-    n64 = np.repeat(np.repeat(_front_counts(padded, 2 * g, layer_m), 2, axis=0), 2, axis=1)
-    spacing = np.where(n >= 3, g / np.sqrt(np.maximum(n, 1)), 2 * g / np.sqrt(np.maximum(n64, 1)))
-    want = np.where((n >= 3) | (n64 >= 3), np.ceil(0.75 * spacing), 1)
-    r_cell = _RADII[np.minimum(np.searchsorted(_RADII, want), len(_RADII) - 1)]
-    r_cell[n == 0] = 0
-    # the commonest small radius splats the whole image in one pass (cells that wanted less get
-    # it too: slightly conservative); larger radii follow per cell (few) or per bounding box
-    radii, counts = np.unique(r_cell[r_cell > 0], return_counts=True)
-    base = int(radii[np.argmax(counts)]) if len(radii) else 1
-    base = base if base <= 3 else 1
-    src = padded[:height, :width].copy()
-    for r in radii[radii > base]:
-        rows, cols = np.nonzero(r_cell == r)
-        boxes = zip(rows, rows + 1, cols, cols + 1) if len(rows) <= 64 else \
-            [(rows.min(), rows.max() + 1, cols.min(), cols.max() + 1)]
-        for r0, r1, c0, c1 in boxes:
-            _splat_cells(img, blocks, r_cell, int(r), r0, r1, c0, c1)
-    np.minimum(img, cv2.erode(src, _splat_kernel(base), borderType=cv2.BORDER_CONSTANT, borderValue=np.inf), out=img)
-    r_cell[(r_cell > 0) & (r_cell < base)] = base
-    return r_cell
-
-
-def _splat_cells(img, blocks, r_cell, r, r0, r1, c0, c1) -> None:
-    """Erode the pixels of cells [r0:r1, c0:c1] whose radius is r, by r, into img (min)."""
-    height, width = img.shape
-    g = blocks.shape[1]
-    y0, y1 = max(r0 * g - r, 0), min(r1 * g + r, height)
-    x0, x1 = max(c0 * g - r, 0), min(c1 * g + r, width)
-    part = np.full((y1 - y0, x1 - x0), np.inf, np.float32)
-    sel = (r_cell[r0:r1, c0:c1] == r)[:, None, :, None]
-    blk = np.where(sel, blocks[r0:r1, :, c0:c1, :], np.float32(np.inf)).reshape((r1 - r0) * g, (c1 - c0) * g)
-    oy, ox = r0 * g - y0, c0 * g - x0
-    hh, ww = min(blk.shape[0], height - r0 * g), min(blk.shape[1], width - c0 * g)
-    part[oy:oy + hh, ox:ox + ww] = blk[:hh, :ww]
-    ero = cv2.erode(part, _splat_kernel(r), borderType=cv2.BORDER_CONSTANT, borderValue=np.inf)
-    np.minimum(img[y0:y1, x0:x1], ero, out=img[y0:y1, x0:x1])
-
-
 def visible_points(uv_px, depth_m, valid, cam: CameraModel, splat_radius_px="auto",
                    depth_tolerance_m: float = 0.05, slope: float = 1.0) -> np.ndarray:
     """(N,) bool: valid points within a depth tolerance of the splatted nearest depth
@@ -306,14 +183,14 @@ def visible_points(uv_px, depth_m, valid, cam: CameraModel, splat_radius_px="aut
     uv = np.asarray(uv_px).reshape(-1, 2)
     valid = np.asarray(valid, bool)
     depth32 = np.asarray(depth_m, np.float32)
-    ui, vi, pix = _pixels(uv, valid, w, h)
-    z, r_cell = _splatted(pix, depth32, w, h, splat_radius_px, depth_tolerance_m)
+    ui, vi, pix = pixel_index(uv, valid, w, h)
+    z, r_cell = splatted_zbuffer(pix, depth32, w, h, splat_radius_px, depth_tolerance_m)
     if r_cell is None:
         r_pt = np.float32(max(0, int(splat_radius_px)))
     else:
-        cell = vi >> _CELL_SHIFT
+        cell = vi >> CELL_SHIFT
         cell *= r_cell.shape[1]
-        cell += ui >> _CELL_SHIFT
+        cell += ui >> CELL_SHIFT
         r_pt = r_cell.astype(np.float32).ravel()[cell]
     zp = z[pix]
     with np.errstate(invalid="ignore"):
@@ -357,8 +234,16 @@ def colour_cloud(points_sonar_m: np.ndarray, image_rgb: np.ndarray, cam: CameraM
     """
     uv, depth, valid = projection if projection is not None else project_cloud(points_sonar_m, T_cam_sonar, cam)
     coloured = visible_points(uv, depth, valid, cam, splat_radius_px, depth_tolerance_m) if occlusion else valid
-    samples = sample_bilinear(image_rgb, uv)[:, :3]
-    colours = np.where(coloured[:, None], samples, np.asarray(fallback, np.uint8)).astype(np.uint8, copy=False)
+    n = len(coloured)
+    k = int(np.count_nonzero(coloured))
+    if 2 * k >= n:  # most points coloured: sample all (no gather), then select
+        samples = sample_bilinear(image_rgb, uv)[:, :3]
+        colours = np.where(coloured[:, None], samples, np.asarray(fallback, np.uint8)).astype(np.uint8, copy=False)
+    else:
+        colours = np.empty((n, 3), np.uint8)
+        colours[:] = np.asarray(fallback, np.uint8)
+        if k:
+            colours[coloured] = sample_bilinear(image_rgb, uv[coloured])[:, :3]
     return colours, coloured
 
 

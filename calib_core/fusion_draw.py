@@ -19,16 +19,21 @@ def overlay(image_rgb: np.ndarray, mask: np.ndarray, colour=(0, 255, 0), opacity
     reads at a glance on 1920x1080 frames. Returns a new RGB uint8 image.
     """
     img = np.ascontiguousarray(image_rgb, dtype=np.uint8)
-    m = np.asarray(mask, bool)
-    a = float(np.clip(opacity, 0.0, 1.0))
-    solid = np.empty_like(img)
-    solid[:] = np.asarray(colour, np.uint8)
-    blended = cv2.addWeighted(img, 1.0 - a, solid, a, 0.0)
     out = img.copy()
-    m8 = m.astype(np.uint8)
-    cv2.copyTo(blended, m8, out)
-    if outline and m.any():
-        contours, _ = cv2.findContours(m8, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
+    m8 = np.asarray(mask, bool).view(np.uint8)
+    x, y, w, h = cv2.boundingRect(m8)  # blend only where the mask is
+    if w == 0 or h == 0:
+        return out
+    a = float(np.clip(opacity, 0.0, 1.0))
+    roi = img[y:y + h, x:x + w]
+    solid = np.empty_like(roi)
+    solid[:] = np.asarray(colour, np.uint8)
+    blended = cv2.addWeighted(roi, 1.0 - a, solid, a, 0.0)
+    out_roi = out[y:y + h, x:x + w]
+    cv2.copyTo(blended, np.ascontiguousarray(m8[y:y + h, x:x + w]), out_roi)
+    if outline:
+        contours, _ = cv2.findContours(np.ascontiguousarray(m8[y:y + h, x:x + w]), cv2.RETR_EXTERNAL,
+                                       cv2.CHAIN_APPROX_SIMPLE, offset=(x, y))
         cv2.drawContours(out, contours, -1, tuple(int(c) for c in colour), _thickness(img), cv2.LINE_AA)
     return out
 
@@ -102,8 +107,8 @@ def draw_detection(image_rgb: np.ndarray, center_uv_px=None, ellipse_px=None, re
     reprojected sonar sphere centre (cyan x + circle)."""
     out = np.ascontiguousarray(image_rgb, dtype=np.uint8).copy()
     draw_ellipse(out, ellipse_px)
-    draw_marker(out, center_uv_px, (255, 40, 40), "cross", label="detected" if labels else None)
     if reprojected_uv_px is not None:
         draw_marker(out, reprojected_uv_px, (0, 230, 255), "x")
         draw_marker(out, reprojected_uv_px, (0, 230, 255), "circle", label="sonar" if labels else None, label_below=True)
+    draw_marker(out, center_uv_px, (255, 40, 40), "cross", label="detected" if labels else None)  # on top
     return out

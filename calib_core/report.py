@@ -232,12 +232,31 @@ def _pictures(views: list[CaptureView]) -> tuple[str, str]:
         "".join(col) or "<p>No coloured clouds (needs a calibration and images).</p>"
 
 
+def _detections_from_calibration(calibration: dict | None) -> dict:
+    """Detections rebuilt from calibration.json's per-capture residual rows (``uv_px``,
+    ``X_sonar_m``), for sessions calibrated without a detections.yaml on disk."""
+    out: dict = {}
+    for cam, c in ((calibration or {}).get("cameras") or {}).items():
+        for r in (c.get("residuals") or []) if isinstance(c, dict) else []:
+            try:
+                cid = str(r["capture"])
+                uv = [float(v) for v in r["uv_px"]]
+                X = [float(v) for v in r["X_sonar_m"]]
+            except (KeyError, TypeError, ValueError):
+                continue
+            if len(uv) == 2 and len(X) == 3:
+                out.setdefault(cid, {})[cam] = {"center": uv, "status": "auto"}
+                out[cid].setdefault("sonar", {"center": X, "status": "auto"})
+    return out
+
+
 # ---------------------------------------------------------------------- page
 def build_report(session, calibration: dict | None, detections: dict | None = None, progress=None,
                  options: ReportOptions | None = None, calibration_note: str = "") -> str:
     """The report's HTML text for ``session`` (a loaded Session) and a calibration dict (or None)."""
     opts = options or ReportOptions()
-    detections = detections or {}
+    from_cal = not detections and bool(_detections_from_calibration(calibration))
+    detections = detections or _detections_from_calibration(calibration)
     models = {}
     problems = []
     for cam in session.cameras:
@@ -267,6 +286,8 @@ def build_report(session, calibration: dict | None, detections: dict | None = No
     body += ["<h2>Detections</h2><p class='muted'>Image thumbnails: detected ellipse (yellow), detected centre (red "
              "cross), reprojected sonar centre (cyan). Sonar thumbnails: points within 3 radii of the detected centre, "
              "coloured by range, with the sphere outline.</p>",
+             "<p class='warn'>No detections.yaml: showing the detections calibration.json used (no status history; "
+             "run 'sonarcal detect' or review in the workbench to record them).</p>" if from_cal else
              "" if detections else "<p class='warn'>No detections.yaml yet: run 'sonarcal detect' (or review in the "
                                    "workbench) to record detections and their status history.</p>",
              _detections(session, detections, views),

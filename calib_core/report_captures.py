@@ -137,7 +137,12 @@ def capture_view(session, cap, detections: dict, calibration: dict | None, model
                 if det_c is not None:
                     view.residual_px[cam] = [float(v) for v in reproj - det_c]
         drawn = fusion.draw_detection(img, det_c, entry.get("ellipse_px"), reproj, labels=False)
-        half = 2.2 * float(entry["radius_px"]) if isinstance(entry.get("radius_px"), (int, float)) else 0.06 * model.width_px
+        half = 0.06 * model.width_px
+        if isinstance(entry.get("radius_px"), (int, float)) and entry["radius_px"] > 0:
+            half = 2.2 * float(entry["radius_px"])
+        elif T is not None and sonar_c is not None:  # apparent radius from the sphere's depth
+            z = float(T[2, :3] @ (sonar_c / s) + T[2, 3])
+            half = 2.2 * model.fx * session.sphere_radius_m / z if z > 0.05 else half
         view.thumbs[cam] = data_uri(crop_thumbnail(drawn, det_c if det_c is not None else reproj, half, opts.thumb_px))
         if T is not None and P is not None:
             uv, _, ok = fusion.project_cloud(P, T, model)

@@ -54,8 +54,9 @@ def crop_thumbnail(image_rgb: np.ndarray, center_uv_px, half_size_px: float, out
     hs = max(8.0, float(half_size_px))
     u, v = float(center_uv_px[0]), float(center_uv_px[1])
     s = out_px / (2 * hs)
-    # affine map: output pixel (x, y) samples input (u - hs + x / s, v - hs + y / s)
-    M = np.array([[s, 0, -(u - hs) * s - 0.5 + 0.5 * s], [0, s, -(v - hs) * s - 0.5 + 0.5 * s]])
+    # affine map (pixel centres at integers): input u_in -> output x = s (u_in - u + hs) - 0.5,
+    # so the crop's centre (out_px / 2 - 0.5) is the given pixel
+    M = np.array([[s, 0, s * (hs - u) - 0.5], [0, s, s * (hs - v) - 0.5]])
     interp = cv2.INTER_AREA if s < 1 else cv2.INTER_LINEAR
     return cv2.warpAffine(np.ascontiguousarray(image_rgb), M, (out_px, out_px), flags=interp,
                           borderMode=cv2.BORDER_CONSTANT, borderValue=(0, 0, 0))
@@ -68,7 +69,7 @@ def oblique_view(points_m: np.ndarray, T_cam_F: np.ndarray | None, width_px: int
     The eye is the real camera's centre rotated by ``angle_deg`` about the cloud's median
     point (around the camera's up axis) and raised by ``elevation_deg``; without a camera
     (``T_cam_F`` None) the eye is placed along the cloud's smallest principal axis.
-    The focal length frames the 1st-99th percentile extent of the points.
+    The focal length puts the 10th-90th percentile extent of the points in the middle 65 % of the view.
     Returns (camera model, T_view_F).
     """
     P = np.asarray(points_m, float).reshape(-1, 3)
@@ -101,9 +102,9 @@ def oblique_view(points_m: np.ndarray, T_cam_F: np.ndarray | None, width_px: int
         K = [[f, 0, width_px / 2 - 0.5], [0, f, height_px / 2 - 0.5], [0, 0, 1]]
         return CameraModel(width_px, height_px, K, name="view"), T_view_F
     x, y = X[:, 0] / X[:, 2], X[:, 1] / X[:, 2]
-    x0, x1 = np.percentile(x, [1, 99])
-    y0, y1 = np.percentile(y, [1, 99])
-    f = 0.9 * min(width_px / max(x1 - x0, 1e-6), height_px / max(y1 - y0, 1e-6))
+    x0, x1 = np.percentile(x, [10, 90])  # the bulk of the points, not the stray returns
+    y0, y1 = np.percentile(y, [10, 90])
+    f = 0.65 * min(width_px / max(x1 - x0, 1e-6), height_px / max(y1 - y0, 1e-6))
     cx = width_px / 2 - 0.5 - f * (x0 + x1) / 2
     cy = height_px / 2 - 0.5 - f * (y0 + y1) / 2
     return CameraModel(width_px, height_px, [[f, 0, cx], [0, f, cy], [0, 0, 1]], name="view"), T_view_F

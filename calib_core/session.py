@@ -14,6 +14,7 @@ Extensions to the contract (all optional):
 from __future__ import annotations
 
 import math
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -80,6 +81,8 @@ class Session:
         """Load the intrinsics of camera ``cam`` (reads the file each call; cache in the shell)."""
         from calib_core.io.intrinsics import load_intrinsics
 
+        if cam not in self.cameras:
+            raise SessionError(self.manifest_path, f"no camera {short_repr(cam)} (cameras: {', '.join(self.cameras)})")
         return load_intrinsics(self.cameras[cam].intrinsics_path)
 
 
@@ -106,6 +109,8 @@ def resolve_inside(root: Path, rel, manifest: Path, what: str) -> Path:
 
 
 def _num(manifest, value, what, positive=True):
+    if isinstance(value, str) and _YAML11_EXPONENT.match(value.strip()):
+        value = float(value)  # YAML 1.1 reads 22e-2 (no dot) as a string; accept it as the number it is
     if isinstance(value, bool) or not isinstance(value, (int, float)):
         raise SessionError(manifest, f"{what} must be a number, got {short_repr(value)}")
     try:
@@ -118,6 +123,7 @@ def _num(manifest, value, what, positive=True):
 
 
 MAX_YAML_BYTES = 50 * 1024 * 1024
+_YAML11_EXPONENT = re.compile(r"^[-+]?(\d+\.?\d*|\.\d+)[eE][-+]?\d+$")
 
 
 def read_yaml_mapping(path: Path, what: str = "file") -> dict:
@@ -193,6 +199,7 @@ def load_session(folder: str | Path) -> Session:
         name = str(name)
         if name == "sonar":
             raise SessionError(manifest, "a camera may not be called 'sonar'")
+        _check_name(manifest, name, "camera name")
         if not isinstance(spec, dict) or "intrinsics" not in spec:
             raise SessionError(manifest, f"cameras.{name}: missing 'intrinsics: PATH'")
         intr = resolve_inside(root, spec["intrinsics"], manifest, f"cameras.{name}.intrinsics")
@@ -217,6 +224,7 @@ def load_session(folder: str | Path) -> Session:
         if cid is None or (not isinstance(cid, (str, int))) or str(cid).strip() == "":
             raise SessionError(manifest, f"captures[{i}]: missing 'id'")
         cid = str(cid)
+        _check_name(manifest, cid, f"captures[{i}].id")
         if cid in seen:
             raise SessionError(manifest, f"captures[{i}]: duplicate id '{cid}'")
         seen.add(cid)
@@ -253,6 +261,12 @@ def load_session(folder: str | Path) -> Session:
         stereo=stereo,
         raw=data,
     )
+
+
+def _check_name(manifest: Path, name: str, what: str) -> None:
+    """Camera names and capture ids end up in file names (exports, thumbnails): no path tricks."""
+    if not name.strip() or name in (".", "..") or any(ch in name for ch in "/\\\x00") or len(name) > 100:
+        raise SessionError(manifest, f"{what} {short_repr(name)} is not allowed (no '/', '\\', '..', empty or over 100 characters)")
 
 
 def _mapping(manifest: Path, value, what: str) -> dict:

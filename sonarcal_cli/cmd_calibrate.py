@@ -23,6 +23,7 @@ def add_parser(sub) -> None:
 
 def run(args) -> int:
     from calib_core.detections import load_detections
+    from calib_core.errors import SessionError
     from calib_core.results import calibration_path, save_calibration
     from calib_core.session import load_session
     from calib_core.solve.calibrate import calibrate_session
@@ -30,6 +31,8 @@ def run(args) -> int:
     session = load_session(args.session)
     detections = load_detections(session)
     out = Path(args.out) if args.out else calibration_path(session)
+    if out.is_dir():
+        raise SessionError(out, "--out is a folder; give a file name such as calibration.json")
     opts = {"estimate_scale": args.scale, "robust": args.robust, "detect": not args.no_detect,
             "leave_one_out": not args.no_loo}
     with progress_bar("calibrate") as cb:

@@ -10,7 +10,6 @@ or import the plain functions: ``from conftest import build_session, tree_hash, 
 
 from __future__ import annotations
 
-import argparse
 import hashlib
 import importlib
 import os
@@ -163,24 +162,8 @@ def _file_digest(p: Path) -> str:
 
 
 # ---- CLI ------------------------------------------------------------------
-def _parser_from_existing_modules() -> argparse.ArgumentParser:
-    """The real parser, minus command modules that do not exist yet (written by other helpers)."""
-    import sonarcal_cli.main as m
-
-    p = argparse.ArgumentParser(prog="sonarcal")
-    sub = p.add_subparsers(dest="command", metavar="COMMAND")
-    for name in m.COMMANDS:
-        try:
-            mod = importlib.import_module(f"sonarcal_cli.cmd_{name}")
-        except ModuleNotFoundError as e:
-            if e.name == f"sonarcal_cli.cmd_{name}":
-                continue
-            raise
-        mod.add_parser(sub)
-    return p
-
-
 def cli_command_exists(name: str) -> bool:
+    """True when ``sonarcal_cli/cmd_<name>.py`` exists (for tests of commands still being written)."""
     try:
         importlib.import_module(f"sonarcal_cli.cmd_{name}")
     except ModuleNotFoundError as e:
@@ -191,21 +174,10 @@ def cli_command_exists(name: str) -> bool:
 
 
 def run_cli(argv: list[str]) -> int:
-    """``sonarcal_cli.main.main(argv)`` in-process.
+    """``sonarcal ARGV`` in-process through the real entry point ``sonarcal_cli.main.main``."""
+    from sonarcal_cli.main import main
 
-    While some command modules are still missing, main()'s parser cannot be built; then
-    main() runs with a parser of the commands that exist (same error handling).
-    """
-    import sonarcal_cli.main as m
-
-    if all(cli_command_exists(n) for n in m.COMMANDS):
-        return m.main(argv)
-    real = m.build_parser
-    m.build_parser = _parser_from_existing_modules
-    try:
-        return m.main(argv)
-    finally:
-        m.build_parser = real
+    return main(argv)
 
 
 VENV_SONARCAL = Path(__file__).resolve().parents[1] / ".venv" / "bin" / "sonarcal"

@@ -136,3 +136,41 @@ def test_upload_of_a_zipped_session_opens_it(wb, tmp_path):
     assert wb.wait_idle(30)
     assert wb.state.session.name == "uploaded"
     assert (tmp_path / "uploads").resolve() in wb.state.session.root.parents
+
+
+def test_fused_view_colours_the_cloud_from_the_image(wb):
+    from types import SimpleNamespace
+
+    from calib_core.errors import SessionError
+
+    with pytest.raises(SessionError, match="no calibrated camera"):
+        wb.fused.colour("p02")
+    calibrate_fake(wb, np.eye(4))
+    P, colours, coloured, cams = wb.fused.colour("p02")
+    assert cams == ["cam1"] and coloured.any()
+    assert (colours[coloured] == 30).all()  # p02's image is uniformly 30
+    assert (colours[~coloured] == 90).all()  # the rest stays grey
+    wb.fused.capture.value = "p02"
+    wb.fused._run(SimpleNamespace(client=None, client_id=None))
+    assert wb.wait_idle(30)
+    assert wb.fused.node is not None and wb.scene3d.hidden == {"p02"}
+
+
+def test_drag_handle_refits_the_sonar_centre_on_release(wb, monkeypatch):
+    from types import SimpleNamespace
+
+    import app.review as review
+
+    monkeypatch.setattr(review, "refit_sonar", lambda data, cid, seed: {
+        "status": "corrected", "center": [float(v) for v in seed], "refit": False})
+    wb.review.handle_on.value = True
+    assert wb.wait_idle(30)
+    assert wb.review.handle is not None
+    target = SimpleNamespace(position=np.array([0.5, 0.25, 3.0]))
+    ev = lambda phase: SimpleNamespace(phase=phase, target=target, client=None, client_id=4)  # noqa: E731
+    wb.review._on_drag(ev("start"))
+    wb.review._on_drag(ev("update"))
+    assert load_detections(load_session(wb.state.session.root))["p01"]["sonar"]["status"] == "auto"
+    wb.review._on_drag(ev("end"))
+    e = load_detections(load_session(wb.state.session.root))["p01"]["sonar"]
+    assert e["status"] == "corrected" and e["center"] == [0.5, 0.25, 3.0] and e["history"][-1]["action"] == "drag"

@@ -16,7 +16,7 @@ def _sonarcal(args):
     return subprocess.run(cmd + args, capture_output=True, text=True, timeout=180, env=dict(os.environ, COLUMNS="120"))
 
 
-@pytest.mark.parametrize("command", ["detect", "calibrate"])
+@pytest.mark.parametrize("command", ["detect"])
 def test_truncated_png_one_line_on_stderr(make_session, tmp_path, command):
     if not cli_command_exists(command):
         pytest.skip(f"sonarcal_cli/cmd_{command}.py does not exist yet")

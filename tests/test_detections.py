@@ -68,6 +68,7 @@ def test_round_trip_with_numpy_values_in_manifest_order(session):
     ({"p01": {"cam1": {"status": "accepted", "center": [True, 1]}}}, "center must be 2 finite"),
     ({"p01": {"cam1": {"status": "accepted", "center": [10**400, 1]}}}, "center must be 2 finite"),
     ({"p01": {"cam1": {"status": "corrected"}}}, "'corrected' but has no center"),
+    ({"p01": {"cam1": {"status": "accepted", "center": ["1e3", "x"]}}}, "center must be 2 finite"),
     ({"p01": {"cam1": {"status": ["auto"]}}}, "is not one of"),
     ([1, 2], "'captures' must map"),
 ])
@@ -113,3 +114,8 @@ def test_merge_auto_never_overwrites_operator_entries():
 
 def test_now_iso_is_utc():
     assert now_iso().endswith("+00:00")
+
+
+def test_hand_written_exponents_are_numbers(session):
+    detections_path(session).write_text("captures:\n  p01:\n    cam1: {center: [1e3, 2E-1], status: corrected}\n")
+    assert load_detections(session)["p01"]["cam1"]["center"] == [1000.0, 0.2]

@@ -254,3 +254,18 @@ def test_colour_cloud_multi_respects_occlusion_per_camera():
     shadow = np.abs(back[:, :2] * 2.0 / 3.0).max(axis=1)
     assert not ok[len(front):][shadow < 0.2].any()
     assert ok[:len(front)][(np.abs(front[:, :2]) < 0.27).all(axis=1)].all()
+
+
+def test_empty_and_all_invisible_clouds():
+    cam = _cam()
+    img = np.zeros((cam.height_px, cam.width_px, 3), np.uint8)
+    for P in (np.zeros((0, 3)), np.array([[0.0, 0.0, -1.0], [np.nan, 0, 1]])):
+        colours, ok = F.colour_cloud(P, img, cam, np.eye(4))
+        assert colours.shape == (len(P), 3) and not ok.any()
+        c2, ok2, which = F.colour_cloud_multi(P, [F.CameraView("a", img, cam, np.eye(4))])
+        assert c2.shape == (len(P), 3) and not ok2.any() and (which == -1).all()
+        uv, _, valid = F.project_cloud(P, np.eye(4), cam)
+        assert not F.segmentation_mask(cam, uv, 5, valid).any()
+        assert np.isinf(F.depth_buffer(uv, np.zeros(len(P)), valid, cam.width_px, cam.height_px)).all()
+    with pytest.raises(ValueError, match="auto"):
+        F.colour_cloud(np.ones((3, 3)), img, cam, np.eye(4), splat_radius_px="big")

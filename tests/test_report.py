@@ -195,3 +195,47 @@ def test_cli_writes_default_path_and_handles_missing_or_bad_calibration(tmp_path
         args.run(args)
     assert out.read_bytes() == before
     assert json.loads(json.dumps(full_calibration(truth)))  # the fixture itself is JSON-clean
+
+
+# ---- rendering helpers ---------------------------------------------------------------
+def test_render_points_shows_the_nearest_point_per_pixel():
+    from calib_core.report_render import oblique_view, render_points
+
+    xs, ys = np.meshgrid(np.linspace(-0.5, 0.5, 60), np.linspace(-0.5, 0.5, 60))
+    near = np.column_stack([xs.ravel() * 0.5, ys.ravel() * 0.5, np.full(xs.size, 2.0)])
+    far = np.column_stack([xs.ravel() * 2, ys.ravel() * 2, np.full(xs.size, 3.0)])
+    P = np.vstack([far, near])  # far first: order must not matter
+    cols = np.vstack([np.tile([0, 0, 255], (len(far), 1)), np.tile([255, 0, 0], (len(near), 1))]).astype(np.uint8)
+    cam = CameraModel(200, 200, [[100, 0, 99.5], [0, 100, 99.5], [0, 0, 1]])
+    img = render_points(P, cols, cam, np.eye(4), splat_radius_px=2, depth_shading=0.0)
+    assert tuple(img[100, 100]) == (255, 0, 0)  # the near square hides the far one
+    assert tuple(img[100, 75]) == (0, 0, 255)  # beside it the far plane shows
+    assert tuple(img[2, 2]) == (250, 250, 250)  # background
+    vcam, T = oblique_view(P, np.eye(4), 320, 200, angle_deg=30)
+    view = render_points(P, cols, vcam, T)
+    assert (view != 250).any(axis=2).mean() > 0.05  # the cloud fills a fair part of the view
+    eye = -T[:3, :3].T @ T[:3, 3]
+    assert abs(np.degrees(np.arctan2(eye[0] - np.median(P[:, 0]), -(eye[2] - np.median(P[:, 2]))))) > 10
+
+
+def test_crop_thumbnail_is_centred_on_the_pixel():
+    from calib_core.report_render import crop_thumbnail
+
+    img = np.zeros((300, 400, 3), np.uint8)
+    img[150, 250] = 255
+    th = crop_thumbnail(img, (250.0, 150.0), half_size_px=20, out_px=41)
+    assert th.shape == (41, 41, 3)
+    assert np.unravel_index(np.argmax(th[..., 0]), th.shape[:2]) == (20, 20)
+    whole = crop_thumbnail(img, None, 20, out_px=100)
+    assert whole.shape == (100, 100, 3)
+
+
+def test_report_falls_back_to_the_detections_calibration_used(scene):
+    root, truth = scene
+    session = load_session(root)
+    cal = full_calibration(truth)
+    cal["cameras"]["cam1"]["residuals"] = [{"capture": "p01", "used": True, "uv_px": [100.0, 80.0],
+                                            "X_sonar_m": [-0.2, 0.1, 2.5], "residual_px": [0.5, -0.25]}]
+    html = build_report(session, cal, {})
+    assert "showing the detections calibration.json used" in html
+    assert "(100.0, 80.0) px" in html and "(-200, 100, 2500) mm" in html

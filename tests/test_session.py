@@ -103,6 +103,8 @@ BAD_EDITS = {
     "nul in path": (lambda d: d["captures"][0].update(cloud="clouds/p01\x00.ply"), "NUL"),
     "empty path": (lambda d: d["captures"][0].update(cloud=""), "expected a relative path"),
     "absolute intrinsics": (lambda d: d["cameras"]["cam1"].update(intrinsics="/tmp/cam1.yaml"), "absolute path"),
+    "capture id with slash": (lambda d: d["captures"][0].update(id="../p01"), "is not allowed"),
+    "camera name with slash": (lambda d: d["cameras"].update({"a/b": {"intrinsics": "intrinsics/cam1.yaml"}}), "is not allowed"),
     "background escapes": (lambda d: d["cameras"]["cam1"].update(background="../../bg"), "leaves the session folder"),
 }
 
@@ -226,3 +228,11 @@ def test_validate_unusable_manifest_gives_one_problem(tmp_path):
     (tmp_path / "session.yaml").write_text("sphere: {diameter: -1}\n")
     check = validate_session(tmp_path)
     assert check.session is None and len(check.problems) == 1
+
+
+def test_yaml11_exponent_strings_are_numbers(make_session, tmp_path):
+    # YAML 1.1 (PyYAML) reads 22e-2 without a dot as a string: accept it as a number
+    root = make_session(tmp_path, n_captures=2)
+    text = (root / "session.yaml").read_text().replace("diameter: 0.22", "diameter: 22e-2")
+    (root / "session.yaml").write_text(text)
+    assert load_session(root).sphere_diameter_m == pytest.approx(0.22)

@@ -19,6 +19,7 @@ same candidate region, for comparison.
 from __future__ import annotations
 
 import time
+from dataclasses import dataclass, field
 from typing import Iterable
 
 import numpy as np
@@ -70,6 +71,27 @@ def background_model(frames_rgb: Iterable[np.ndarray], how: str = "median") -> n
     return out
 
 
+@dataclass
+class PreparedBackground:
+    """A background model with its downscaled copies cached (build once per camera with
+    :func:`prepare_background`; saves ~3-5 ms per 1080p detection)."""
+
+    image: np.ndarray  # (H,W,3) float32
+    _small: dict = field(default_factory=dict, repr=False)
+
+    def small(self, s: int) -> np.ndarray:
+        if s not in self._small:
+            self._small[s] = downscale(self.image, s)
+        return self._small[s]
+
+
+def prepare_background(background: np.ndarray | PreparedBackground) -> PreparedBackground:
+    """Wrap a background image (see :func:`background_model`) for repeated detections."""
+    if isinstance(background, PreparedBackground):
+        return background
+    return PreparedBackground(np.ascontiguousarray(np.asarray(background, np.float32)))
+
+
 def _not_found(reason: str, method: str, **extras) -> ImageDetection:
     return ImageDetection(found=False, reason=reason, method=method, extras=extras)
 
@@ -104,15 +126,15 @@ def detect_sphere_in_image(image_rgb: np.ndarray, cam: CameraModel, sphere_radiu
                            background: np.ndarray | None = None, method: str = "ellipse-exact",
                            hint_uv_px=None, hint_radius_px: float | None = None,
                            range_limits_m: tuple[float, float] = DEFAULT_RANGE_LIMITS_M,
-                           max_candidates: int = 4, seed: int = 0) -> ImageDetection:
+                           max_candidates: int = 6, seed: int = 0) -> ImageDetection:
     """Find the sphere in one raw camera image.
 
     Args:
         image_rgb: (H,W,3) RGB uint8 raw (distorted) image, the size ``cam`` describes.
         cam: intrinsics of the camera.
         sphere_radius_m: known sphere radius (m).
-        background: (H,W,3) background model (:func:`background_model`) or None (single-frame
-            fallback).
+        background: (H,W,3) background model (:func:`background_model`), or the same wrapped by
+            :func:`prepare_background` (faster when reused), or None (single-frame fallback).
         method: "ellipse-exact" (default; exact projection of the centre from the silhouette
             cone) or "hough-circle" (the paper's Canny + Hough circle centre).
         hint_uv_px: optional (u, v) raw pixel an operator clicked near the sphere: candidates
@@ -135,8 +157,10 @@ def detect_sphere_in_image(image_rgb: np.ndarray, cam: CameraModel, sphere_radiu
     if (W, H) != (cam.width_px, cam.height_px):
         return _not_found(f"image is {W}x{H} but the intrinsics are {cam.width_px}x{cam.height_px}",
                           method)
-    if background is not None and np.asarray(background).shape[:2] != (H, W):
-        return _not_found("background differs in size from the image", method)
+    if background is not None:
+        background = prepare_background(background)
+        if background.image.shape[:2] != (H, W):
+            return _not_found("background differs in size from the image", method)
     d_min, d_max = range_limits_m
     r_bounds = radius_bounds_px(cam, sphere_radius_m, range_limits_m)
     if hint_radius_px is not None:
@@ -147,8 +171,8 @@ def detect_sphere_in_image(image_rgb: np.ndarray, cam: CameraModel, sphere_radiu
     s = choose_scale(r_bounds[0], W)
     small = downscale(img, s)
     if background is not None:
-        bg = np.asarray(background, np.float32)
-        cands, _ = candidates_from_background(small, downscale(bg, s), s, r_bounds)
+        bg = background.image
+        cands, _ = candidates_from_background(small, background.small(s), s, r_bounds)
     else:
         bg = None
         cands = candidates_single_frame(small, s, r_bounds)
@@ -159,11 +183,14 @@ def detect_sphere_in_image(image_rgb: np.ndarray, cam: CameraModel, sphere_radiu
         return _not_found("no sphere", method, candidates=0)
 
     rng = np.random.default_rng(seed)
+    # candidates touching the border are tried last (a sphere there is cut anyway)
+    cands = sorted(cands, key=lambda c: c.touches_border)
     fits: list[tuple[Candidate, CandidateFit]] = []
     for c in cands[:max_candidates]:
+        ok = [cf for cf in fits if cf[1].ok]
+        if ok and (hint_uv_px is not None or c.strength < 0.4 * max(cf[0].strength for cf in ok)):
+            break  # found, and what is left is too weak to compete
         fits.append((c, refine_candidate(img, cam, c, sphere_radius_m, a_range, bg, rng)))
-        if hint_uv_px is not None and fits[-1][1].ok:
-            break
     fitted = [(c, f) for c, f in fits if f.credible]
     good: list[tuple[Candidate, CandidateFit]] = []
     for c, f in sorted(fits, key=lambda cf: -cf[1].score):
@@ -186,13 +213,12 @@ def detect_sphere_in_image(image_rgb: np.ndarray, cam: CameraModel, sphere_radiu
             best = max(cut, key=lambda f: f.support)
             return _not_found("sphere cut by the image border", method, candidates=len(cands),
                               partial_center_uv_px=[round(float(v), 2) for v in best.centre_uv_px])
-        if any(c.touches_border and c.source == "background" for c, _ in fits):
+        if any(c.touches_border and c.source == "background" and f.fit is None for c, f in fits):
             reason = "sphere cut by the image border"
-        elif any(f.fit is not None for _, f in fits):
-            reason = next(f.reason for _, f in fits if f.fit is not None)
         else:
             reason = "no sphere"
-        return _not_found(reason, method, candidates=len(cands))
+        return _not_found(reason, method, candidates=len(cands),
+                          rejected=sorted({f.reason for _, f in fits if f.reason}))
     good.sort(key=lambda cf: -cf[1].score)
     if len(good) > 1 and hint_uv_px is None and good[1][1].score >= 0.5 * good[0][1].score:
         return _not_found("two candidates", method, candidates=[

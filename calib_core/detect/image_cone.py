@@ -195,14 +195,18 @@ def fit_cone(cam: CameraModel, xy: np.ndarray, a_range_rad=(1e-3, 1.4), inlier_p
             return None
     w, a = np.asarray(start[0], float), float(start[1])
     thr = max(inlier_px, 2.0)
-    for it in range(10):
+    sig = 0.0
+    for it in range(12):
         if it in (0, 3):  # the px-per-radian scale barely moves once w is close
             scale = px_per_rad(cam, v, w)
         r, ang = _residuals(v, w, a, scale)
         inl = np.abs(r) < thr
         if inl.sum() < 6:
             return None
-        sig = 1.4826 * np.median(np.abs(r[inl] - np.median(r[inl])))
+        ri = r[inl]
+        # spread of the points already inside the band (mean absolute deviation x 1.2533 is
+        # sigma for Gaussian noise; cheaper than a median and robust enough after the band)
+        sig = 1.2533 * float(np.abs(ri - ri.mean()).mean())
         # Huber weights (k = 1.345 sigma) inside the inlier band, 0 outside; points inside the
         # cone (r < 0) fall off faster: a silhouette can only lose outline (gaps between the
         # wires of an open mesh, occlusion), never gain any beyond the sphere
@@ -214,13 +218,13 @@ def fit_cone(cam: CameraModel, xy: np.ndarray, a_range_rad=(1e-3, 1.4), inlier_p
         sin_ang = np.maximum(np.sin(ang), 1e-9)
         J = np.column_stack([-scale * (v @ e1) / sin_ang, -scale * (v @ e2) / sin_ang, -scale])
         JW = J * wt[:, None]
-        step = np.linalg.lstsq(JW.T @ J, -(JW.T @ r), rcond=None)[0]
+        step = np.linalg.solve(JW.T @ J + 1e-12 * np.eye(3), -(JW.T @ r))
         w = w + step[0] * e1 + step[1] * e2
         w /= np.linalg.norm(w)
         a = a + step[2]
         if it >= 2:
             thr = max(inlier_px, 3.5 * sig)
-        if np.abs(step).max() < 1e-9 and it >= 3:
+        if np.abs(step).max() < 1e-8 and it >= 4:
             break
     if not (a_range_rad[0] <= a <= a_range_rad[1]) or w[2] <= 0:
         return None

@@ -27,6 +27,7 @@ SMOOTH_SIGMA_PX = 1.0
 # errors over random synthetic scenes (mean Mahalanobis^2 ~ 2) and that it is not overconfident
 # against pure-noise Monte Carlo.
 CORR_POINTS = 1.5
+SYS_FRACTION = 0.2
 
 
 @dataclass
@@ -120,13 +121,17 @@ def refine_candidate(image: np.ndarray, cam: CameraModel, cand: Candidate, spher
     prof = sig.profiles(pts, dirs, t)
     g = gradient_magnitude(prof, step)
     gmax = g.max(axis=1)
-    t1, s1 = pick_edges(t, g, "outermost", 0.35 * float(np.median(gmax)))
-    ok = np.isfinite(t1)
+    # rays whose search segment leaves the image see no outline there (a cut sphere)
+    seg_in = cam.in_image(pts + t[-1] * dirs) & cam.in_image(pts + t[0] * dirs)
+    if seg_in.sum() < 12:
+        return CandidateFit(False, "no silhouette edges")
+    t1, s1 = pick_edges(t, g, "outermost", 0.35 * float(np.median(gmax[seg_in])))
+    ok = np.isfinite(t1) & seg_in
     if ok.sum() < 12:
         return CandidateFit(False, "no silhouette edges")
     uv1 = pts[ok] + t1[ok, None] * dirs[ok]
     fit1 = fit_cone(cam, cam.normalize(uv1), a_range_rad, inlier_px=max(1.5, 0.04 * R), rng=rng)
-    if fit1 is None or fit1.inlier_fraction < 0.4:
+    if fit1 is None or fit1.inliers.sum() < 0.4 * seg_in.sum():
         return CandidateFit(False, "no sphere-shaped silhouette")
 
     # ---- pass 2: along the normals of the fitted silhouette, narrow band, nearest edge
@@ -144,7 +149,7 @@ def refine_candidate(image: np.ndarray, cam: CameraModel, cand: Candidate, spher
     prof2 = sig.colour_profiles(sil, nrm, t2)
     g2 = gradient_magnitude(prof2, 0.5)
     g2_typ = float(np.median(g2.max(axis=1)[inside_img])) if inside_img.any() else 0.0
-    te, s2 = pick_edges(t2, g2, "nearest", 0.3 * g2_typ)
+    te, s2 = pick_edges(t2, g2, "outermost", 0.3 * g2_typ)
     ok2 = np.isfinite(te) & inside_img
     if ok2.sum() < 12:
         return CandidateFit(False, "no silhouette edges")
@@ -155,6 +160,10 @@ def refine_candidate(image: np.ndarray, cam: CameraModel, cand: Candidate, spher
         return CandidateFit(False, "no sphere-shaped silhouette")
 
     centre, cov = centre_uv_and_cov(cam, fit)
+    # systematic outline deviations (ragged open-mesh envelope, shading, JPEG) do not average
+    # out over the edge points; a floor of SYS_FRACTION x the edge RMS per axis matched the
+    # errors over the synthetic benchmark presets (approximation)
+    cov = cov + (SYS_FRACTION * fit.sigma_px) ** 2 * np.eye(2)
     sil_f = silhouette_uv(cam, fit.w, fit.a_rad, n=k2)
     support = float(fit.inliers.sum()) / k2
     # peak gradient of a step c smoothed by a Gaussian is c / (sigma sqrt(2 pi)); optics blur ignored
@@ -170,15 +179,16 @@ def refine_candidate(image: np.ndarray, cam: CameraModel, cand: Candidate, spher
     res.extras["outside_mismatch"] = round(outside_bad, 4)
     # a clean outline, maybe cut by the border: things inside it are its texture
     res.credible = support >= 0.45 and fit.sigma_px <= max(0.6, 0.008 * R) and outside_bad <= 0.2
+    clean = fit.sigma_px <= max(0.6, 0.008 * R)
     if not cam.in_image(sil_f, margin_px=1.0).all():
-        res.ok, res.reason = False, "sphere cut by the image border"
-    elif support < 0.55 or fit.sigma_px > max(0.6, 0.008 * R):
+        res.ok = False
+        partial_ok = support >= 0.3 and clean and outside_bad <= 0.25
+        res.reason = "sphere cut by the image border" if partial_ok else "no sphere-shaped silhouette"
+    elif support < 0.75 or not clean:
         res.ok, res.reason = False, "silhouette too weak or not a sphere"
     elif outside_bad > 0.2:
         # the object goes on beyond the fitted outline: part of something larger (or cut)
         res.ok, res.reason = False, "silhouette not closed"
-        if cand.touches_border:
-            res.reason = "sphere cut by the image border"
     return res
 
 

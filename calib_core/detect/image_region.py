@@ -51,9 +51,9 @@ def radius_bounds_px(cam: CameraModel, sphere_radius_m: float,
 
 
 def choose_scale(r_min_px: float, width_px: int) -> int:
-    """Downscale factor (1, 2 or 4) so the smallest plausible sphere keeps >= ~2.5 px of radius."""
+    """Downscale factor (1, 2 or 4) so the smallest plausible sphere keeps >= ~2 px of radius."""
     s = 1
-    while s < 4 and r_min_px / (2 * s) >= 2.5 and width_px / (2 * s) >= 240:
+    while s < 4 and r_min_px / (2 * s) >= 2.0 and width_px / (2 * s) >= 240:
         s *= 2
     return s
 

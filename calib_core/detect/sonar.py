@@ -31,17 +31,29 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from calib_core.detect.sonar_fit import MAD_TO_SIGMA, FitResult, angle_to_axis_rad, fit_sphere
-from calib_core.detect.sonar_search import Candidate, disc_coverage, find_candidates, ring_sectors
+from calib_core.detect.sonar_search import (
+    Candidate,
+    disc_coverage,
+    find_candidates,
+    crop_ball,
+    ring_sectors,
+    start_center,
+)
 from calib_core.detect.types import SonarDetection
 
 METHODS = ("cone-model", "known-radius", "free-radius")
 MIN_POINTS = 20
-JUDGE_POINTS = 1000
+QUICK_POINTS = 150  # points of a candidate's crop for the first look
+JUDGE_POINTS = 600  # points of a candidate's crop used to judge it (the final fit uses all)
+MAX_JUDGED = 10  # candidates pre-screened, best coarse quality first
+MAX_FULL = 5  # of those, judged at full resolution
+RING_PROBLEM = "part of a larger surface"
+MAX_SIGMA_REL = 0.15  # residual scale above this fraction of the radius: not this sphere
 MIN_INLIERS = 12
 MIN_COVERAGE = 0.7
 MIN_COVERAGE_SEEDED = 0.4
 MIN_PURITY = 0.6
-MAX_RING_SECTORS = 3  # of 8 around the disc: a chain or a stand, not a seabed or a wall
+MAX_RING_SECTORS = 5  # of 16 around the disc: a chain or a stand, not a seabed or a wall
 # relative (and at least 3 sigma): a larger difference between the diameter the cone model
 # sees and session.yaml's is reported, and the sphere is then fitted with the diameter it shows
 DIAMETER_TOL = 0.08
@@ -63,14 +75,6 @@ class _Judged:
     radius_fit_m: float = float("nan")  # radius of ``fit``: the session's, or the one seen
 
 
-def _crop(P: np.ndarray, center: np.ndarray, radius: float) -> np.ndarray:
-    """Indices of the points within ``radius`` of ``center`` (box test first, it is cheaper)."""
-    box = np.nonzero(np.abs(P[:, 0] - center[0]) < radius)[0]
-    box = box[np.abs(P[box, 1] - center[1]) < radius]
-    d = P[box] - center
-    return box[np.einsum("ij,ij->i", d, d) < radius * radius]
-
-
 def _roughness_m(ranges_m: np.ndarray, dirs: np.ndarray, k: int = 8) -> float:
     """Model-free range noise scale (m): robust spread of each range about the median range of
     its ``k`` angular neighbours (smooth surfaces cancel; about 1.2 x the range noise)."""
@@ -80,8 +84,14 @@ def _roughness_m(ranges_m: np.ndarray, dirs: np.ndarray, k: int = 8) -> float:
     return float(MAD_TO_SIGMA * np.median(np.abs(ranges_m - np.median(ranges_m[nb[:, 1:]], axis=1))))
 
 
-def _assess(X, R, D, fit: FitResult, radius: float, h: float, seeded: bool):
-    """(coverage, purity, problem) of a cone-model fit of a sphere of ``radius`` to the crop."""
+def _max_sigma(radius: float, noise_m: float) -> float:
+    """Largest residual scale (m) a sphere of ``radius`` may show (see MAX_SIGMA_REL)."""
+    return max(MAX_SIGMA_REL * radius, 2.0 * noise_m + 0.002 if np.isfinite(noise_m) else 0.0)
+
+
+def _assess(X, R, D, fit: FitResult, radius: float, h: float, seeded: bool, noise_m: float):
+    """(coverage, purity, problem) of a cone-model fit of a sphere of ``radius`` to the crop;
+    ``noise_m``: the sonar's range noise measured on the planes of the cloud (or NaN)."""
     c = fit.center_m
     cn = float(np.linalg.norm(c))
     alpha = float(np.arcsin(min(radius / cn, 1.0))) + h
@@ -98,8 +108,11 @@ def _assess(X, R, D, fit: FitResult, radius: float, h: float, seeded: bool):
     problem = ""
     if n_in < MIN_INLIERS:
         problem = f"too few points on the sphere ({n_in})"
-    elif sig > 0.3 * radius:
+    elif sig > MAX_SIGMA_REL * radius:
         problem = f"returns too scattered for a sphere (sigma {sig * 1000:.0f} mm)"
+    elif np.isfinite(noise_m) and sig > 2.0 * noise_m + 0.002:
+        problem = (f"not sphere-shaped (fit sigma {sig * 1000:.0f} mm, sonar noise "
+                   f"{noise_m * 1000:.0f} mm)")
     elif not sig <= 2.0 * rough + 0.002:  # the surface is smooth but not this sphere
         problem = (f"not sphere-shaped (fit sigma {sig * 1000:.0f} mm, surface noise "
                    f"{rough * 1000:.0f} mm)")
@@ -107,24 +120,23 @@ def _assess(X, R, D, fit: FitResult, radius: float, h: float, seeded: bool):
         problem = f"not sphere-shaped (only {purity:.0%} of the returns on the sphere)"
     elif coverage < (MIN_COVERAGE_SEEDED if seeded else MIN_COVERAGE):
         problem = f"sphere only partly seen (coverage {coverage:.0%})"
-    elif ring > MAX_RING_SECTORS and not seeded:
-        problem = f"part of a larger surface (returns all around it, {ring}/8 sectors)"
+    elif ring > MAX_RING_SECTORS:  # (an operator's pick overrides this one, see _judge)
+        problem = f"{RING_PROBLEM} (returns around it in {ring}/16 sectors)"
     return coverage, purity, problem
 
 
-def _judge(P: np.ndarray, cand: Candidate, r: float, h: float, seeded: bool) -> _Judged:
+def _judge(P: np.ndarray, cand: Candidate, r: float, h: float, seeded: bool,
+           noise_m: float = float("nan")) -> _Judged:
     """Full-resolution cone-model fits and tests around one coarse candidate.
 
     The sphere is fitted with the session radius and, robustly, with a free radius; when the
     free radius differs by more than DIAMETER_TOL (a decoy, or a wrong diameter in
     session.yaml) the candidate is judged, and later refined, with the radius it shows.
     """
-    c0 = cand.center_m
-    cn0 = float(np.linalg.norm(c0))
-    # the coarse free-radius centre sits too far by about (apparent - true radius)
-    start = c0 * max(cn0 - (cand.radius_m - r), r * 1.5) / cn0
+    cn0 = float(np.linalg.norm(cand.center_m))
+    start = start_center(cand, r)
     crop_r = 1.6 * r + cn0 * np.tan(h) + 0.05
-    idx = _crop(P, start, crop_r)
+    idx = crop_ball(P, start, crop_r)
     bad = _Judged(cand, idx, np.arange(len(idx)), None, float("nan"), 0.0, 0.0, 0.0, "")
     if len(idx) < MIN_INLIERS:
         bad.problem = f"too few points on the candidate ({len(idx)})"
@@ -135,32 +147,65 @@ def _judge(P: np.ndarray, cand: Candidate, r: float, h: float, seeded: bool) -> 
     else:
         idx_j = np.arange(len(idx))
     X = P[idx[idx_j]]
-    fit = fit_sphere(X, start, r, model="cone", half_angle_rad=h, sigma0_m=0.01)
-    bad.fit, bad.idx_j = fit, idx_j
+    bad.idx_j = idx_j
+    # cheap first look on at most QUICK_POINTS points: most clutter ends here
+    Xq = X[::max(1, len(X) // QUICK_POINTS)]
+    quick = fit_sphere(Xq, start, r, model="cone", half_angle_rad=h, sigma0_m=0.01, n_rounds=2)
+    bad.fit = quick
+    if not quick.ok or np.linalg.norm(quick.center_m - start) > r:
+        bad.problem = "sphere fit did not converge"
+        return bad
+    qfree = None
+
+    def other_size_start():
+        """(centre, radius) of a sphere of another size seen in the first-look points, or None."""
+        nonlocal qfree
+        if qfree is None:
+            qfree = fit_sphere(Xq, quick.center_m, r, model="cone", free_radius=True,
+                               half_angle_rad=h, sigma0_m=0.01, n_rounds=2)
+        if (qfree.ok and qfree.sigma_m <= _max_sigma(qfree.radius_m, noise_m)
+                and 0.6 * r <= qfree.radius_m <= 1.6 * r):
+            return qfree.center_m, qfree.radius_m
+        return None
+
+    if quick.sigma_m > 1.5 * _max_sigma(r, noise_m):
+        bad.problem = f"returns too scattered for a sphere (sigma {quick.sigma_m * 1000:.0f} mm)"
+        if other_size_start() is None:
+            return bad  # ... unless it is a sphere of another size
+    fit = fit_sphere(X, quick.center_m, r, model="cone", half_angle_rad=h,
+                     sigma0_m=max(min(quick.sigma_m, 0.01), 1e-3), warm=True)
+    bad.fit = fit
     cn = float(np.linalg.norm(fit.center_m))
     if not fit.ok or cn <= r or np.linalg.norm(fit.center_m - start) > r:
         bad.problem = "sphere fit did not converge"
         return bad
+    if fit.sigma_m > _max_sigma(r, noise_m) and other_size_start() is None:
+        bad.problem = f"returns too scattered for a sphere (sigma {fit.sigma_m * 1000:.0f} mm)"
+        return bad
     R = np.linalg.norm(X, axis=1)
     D = X / R[:, None]
-    coverage, purity, problem = _assess(X, R, D, fit, r, h, seeded)
+    coverage, purity, problem = _assess(X, R, D, fit, r, h, seeded, noise_m)
     r_fit, r_cone = r, float("nan")
     if not problem:  # the diameter the cone model supports, precisely: on the inliers
         fine = fit_sphere(X[fit.inliers], fit.center_m, r, model="cone", free_radius=True,
                           half_angle_rad=h, sigma0_m=max(fit.sigma_m, 1e-3), n_rounds=2,
                           warm=True)
         r_cone = fine.radius_m if fine.ok else float("nan")
-    if problem or not abs(r_cone - r) <= DIAMETER_TOL * r:
+    start_free = other_size_start() if problem or not abs(r_cone - r) <= DIAMETER_TOL * r else None
+    if start_free is not None:
         # perhaps a sphere of another size (a decoy, or a wrong diameter in session.yaml):
         # free radius, robustly on all points, judged with the size it shows
-        free = fit_sphere(X, fit.center_m, r, model="cone", free_radius=True, half_angle_rad=h,
-                          sigma0_m=max(fit.sigma_m, 1e-3))
+        free = fit_sphere(X, start_free[0], start_free[1], model="cone", free_radius=True,
+                          half_angle_rad=h, sigma0_m=max(min(fit.sigma_m, 0.01), 1e-3))
         tol = max(DIAMETER_TOL * r, 3.0 * np.sqrt(max(free.cov_radius_m2, 0.0)))
         if (free.ok and abs(free.radius_m - r) > tol and 0.6 * r <= free.radius_m <= 1.6 * r
                 and float(np.linalg.norm(free.center_m)) > free.radius_m):
             fit, r_fit, r_cone = free, free.radius_m, free.radius_m
-            coverage, purity, problem = _assess(X, R, D, fit, r_fit, h, seeded)
-    if not problem and not (np.isfinite(r_cone) and 0.6 * r <= r_cone <= 1.6 * r):
+            coverage, purity, problem = _assess(X, R, D, fit, r_fit, h, seeded, noise_m)
+    if seeded and problem.startswith(RING_PROBLEM):  # the operator says it is the sphere
+        problem = ""
+    if not problem and not (np.isfinite(r_cone) and 0.6 * r <= r_cone <= 1.6 * r
+                            and (r_fit != r or abs(r_cone - r) <= DIAMETER_TOL * r)):
         problem = f"wrong size (diameter {2 * r_cone:.3f} m, expected {2 * r:.3f} m)"
     rel = (r_cone - r) / r if np.isfinite(r_cone) else 0.0
     sig = fit.sigma_m
@@ -213,12 +258,12 @@ def detect_sphere_in_cloud(points_sonar_m: np.ndarray, sphere_radius_m: float,
     if seed_center_m is not None:
         seed = np.asarray(seed_center_m, float).reshape(3)
         reach = float(seed_radius_m) + 2.0 * r + float(np.linalg.norm(seed)) * np.tan(h) + 0.05
-        base = _crop(P, seed, reach)
+        base = crop_ball(P, seed, reach)
         if len(base) < MIN_POINTS:
             return _not_found(f"too few points near the picked point ({len(base)})", method,
                               n_points=n_all)
     W = P if base is None else P[base]
-    cands, info = find_candidates(W, r, h, rng)
+    cands, info = find_candidates(W, r, h, rng, max_candidates=MAX_JUDGED)
     if not cands:
         return _not_found("no sphere-like cluster", method, n_points=n_all, **info)
     if seed is not None:
@@ -226,7 +271,7 @@ def detect_sphere_in_cloud(points_sonar_m: np.ndarray, sphere_radius_m: float,
         cands = [k for k in cands if np.linalg.norm(k.center_m - seed) < seed_radius_m + 2 * r]
         if not cands:
             return _not_found("nothing sphere-like near the picked point", method, n_points=n_all)
-    judged = [_judge(W, k, r, h, seed is not None) for k in cands[:4]]
+    judged = [_judge(W, k, r, h, seed is not None, info["noise_m"]) for k in cands[:MAX_FULL]]
     good = [j for j in judged if not j.problem]
     good = _dedupe(good, r)
     if not good:
@@ -299,6 +344,7 @@ def _finish(P, W, base, j: _Judged, r, h, method, n_all, info, extras) -> SonarD
         "coverage": round(j.coverage, 3),
         "purity": round(j.purity, 3),
         "planes_removed": int(info.get("planes_removed", 0)),
+        "plane_noise_m": round(float(info["noise_m"]), 5) if np.isfinite(info["noise_m"]) else None,
     })
     if other_size:
         extras["warning"] = (f"sonar sees a sphere of diameter {2 * j.radius_cone_m:.3f} m, "

@@ -27,15 +27,15 @@ MAD_TO_SIGMA = 1.4826
 
 
 def _unit_rows(P: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    R = np.linalg.norm(P, axis=1)
+    R = np.sqrt(np.einsum("ij,ij->i", P, P))
     return R, P / np.maximum(R, 1e-12)[:, None]
 
 
 def angle_to_axis_rad(dirs: np.ndarray, axis_unit: np.ndarray) -> np.ndarray:
     """Angle (rad) between unit rows of ``dirs`` and a unit axis, accurate near zero."""
     cosv = dirs @ axis_unit
-    sinv = np.linalg.norm(np.cross(dirs, axis_unit), axis=1)
-    return np.arctan2(sinv, cosv)
+    perp = dirs - cosv[:, None] * axis_unit
+    return np.arctan2(np.sqrt(np.einsum("ij,ij->i", perp, perp)), cosv)
 
 
 def cone_first_return_range_m(dirs: np.ndarray, center_sonar_m, radius_m: float,
@@ -141,11 +141,12 @@ def _resid_fn(model: str, P, R, D, h, radius_m):
     else:
         def f(x):
             rr = x[3] if len(x) == 4 else radius_m
-            return np.linalg.norm(P - x[:3], axis=1) - rr
+            v = P - x[:3]
+            return np.sqrt(np.einsum("ij,ij->i", v, v)) - rr
 
         def jac(x):
             v = P - x[:3]
-            J = -v / np.maximum(np.linalg.norm(v, axis=1), 1e-12)[:, None]
+            J = -v / np.maximum(np.sqrt(np.einsum("ij,ij->i", v, v)), 1e-12)[:, None]
             return np.c_[J, -np.ones(len(P))] if len(x) == 4 else J
     return f, jac
 
@@ -196,10 +197,10 @@ def fit_sphere(points_m: np.ndarray, center0_m, radius_m: float, model: str = "c
     for k in range(first, n_rounds):
         if k == 0:
             sol = least_squares(f_all, x, jac=j_all, loss="soft_l1", f_scale=sigma,
-                                x_scale=0.05, xtol=1e-6, ftol=1e-6, max_nfev=30)
+                                x_scale=0.05, xtol=1e-6, ftol=1e-6, max_nfev=20)
         else:
             fs, js = _resid_fn(model, P[inl], R[inl], D[inl], half_angle_rad, radius_m)
-            sol = least_squares(fs, x, jac=js, x_scale=0.05, xtol=1e-6, ftol=1e-6, max_nfev=20)
+            sol = least_squares(fs, x, jac=js, x_scale=0.05, xtol=1e-6, ftol=1e-6, max_nfev=12)
         if not np.all(np.isfinite(sol.x)):
             ok = False
             break

@@ -32,6 +32,15 @@ class Candidate:
     purity: float
     cluster: int
     quality: float = 0.0
+    spread_m: float = float("nan")
+
+
+def crop_ball(P: np.ndarray, center: np.ndarray, radius: float) -> np.ndarray:
+    """Indices of the points within ``radius`` of ``center`` (box test first, it is cheaper)."""
+    box = np.nonzero(np.abs(P[:, 0] - center[0]) < radius)[0]
+    box = box[np.abs(P[box, 1] - center[1]) < radius]
+    d = P[box] - center
+    return box[np.einsum("ij,ij->i", d, d) < radius * radius]
 
 
 def thin_random(points_m: np.ndarray, max_points: int, rng: np.random.Generator) -> np.ndarray:
@@ -112,6 +121,28 @@ def remove_planes(Q: np.ndarray, min_extent_m: float, thr_m: float, rng: np.rand
     return keep, planes
 
 
+def plane_range_noise_m(points_m: np.ndarray, planes: list, thr_m: float,
+                        rng: np.random.Generator, max_points: int = 20_000) -> float:
+    """Range noise scale (m) of the sonar, from the points on the removed planes: the robust
+    spread of their distance to the plane converted to range (divided by the cosine of the
+    incidence). NaN without planes. A rough (non-flat) seabed makes it larger, never smaller."""
+    if not planes:
+        return float("nan")
+    S = points_m if len(points_m) <= max_points else points_m[rng.integers(0, len(points_m), max_points)]
+    R = np.linalg.norm(S, axis=1)
+    D = S / np.maximum(R, 1e-12)[:, None]
+    res = []
+    for n, off, _ in planes:
+        dn = D @ n
+        dist = S @ n - off
+        m = (np.abs(dist) < 2 * thr_m) & (np.abs(dn) > 0.3)
+        res.append(dist[m] / dn[m])
+    res = np.concatenate(res)
+    if len(res) < 50:
+        return float("nan")
+    return float(1.4826 * np.median(np.abs(res - np.median(res))))
+
+
 def cluster_points(Q: np.ndarray, link_m: float) -> np.ndarray:
     """Connected-component labels (M,) of points linked when closer than ``link_m``."""
     if len(Q) == 0:
@@ -119,6 +150,12 @@ def cluster_points(Q: np.ndarray, link_m: float) -> np.ndarray:
     pairs = cKDTree(Q).query_pairs(link_m, output_type="ndarray")
     g = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(len(Q), len(Q)))
     return connected_components(g, directed=False)[1]
+
+
+def _pairwise_dist(A: np.ndarray, B: np.ndarray) -> np.ndarray:
+    """(len(A), len(B)) Euclidean distances, via |a|^2 + |b|^2 - 2 a.b (fast, ~1e-9 m exact)."""
+    d2 = np.einsum("ij,ij->i", A, A)[:, None] + np.einsum("ij,ij->i", B, B)[None, :] - 2.0 * A @ B.T
+    return np.sqrt(np.maximum(d2, 0.0))
 
 
 def _batched_spheres(S4: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -137,7 +174,7 @@ def _batched_spheres(S4: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def ransac_sphere(X: np.ndarray, r_lo: float, r_hi: float, thr_m: float, reach_m: float,
-                  rng: np.random.Generator, n_hyp: int = 160, r_pref: float | None = None,
+                  rng: np.random.Generator, n_hyp: int = 96, r_pref: float | None = None,
                   r_pref_sd: float = 1.0):
     """Best sphere (centre, radius, inlier mask) with radius in [r_lo, r_hi] among random
     4-point samples drawn near random anchors; the centre must lie beyond its inliers as
@@ -149,7 +186,7 @@ def ransac_sphere(X: np.ndarray, r_lo: float, r_hi: float, thr_m: float, reach_m
         return None
     anchors = rng.integers(0, n, n_hyp)
     if n <= 1500:  # 3 random partners within reach of each anchor
-        dist = np.linalg.norm(X[anchors][:, None, :] - X[None, :, :], axis=2)
+        dist = _pairwise_dist(X[anchors], X)
         key = np.where(dist < reach_m, rng.random(dist.shape), -1.0)
         key[np.arange(n_hyp), anchors] = -1.0
         part = np.argpartition(-key, 3, axis=1)[:, :3]
@@ -167,7 +204,7 @@ def ransac_sphere(X: np.ndarray, r_lo: float, r_hi: float, thr_m: float, reach_m
         return None
     C, Rr = C[good], Rr[good]
     Xs = X if n <= 3000 else X[rng.choice(n, 3000, replace=False)]
-    dist = np.linalg.norm(Xs[None, :, :] - C[:, None, :], axis=2)
+    dist = _pairwise_dist(C, Xs)
     cnt = (np.abs(dist - Rr[:, None]) < thr_m).sum(axis=1).astype(float)
     if r_pref is not None:
         cnt *= np.exp(-0.5 * ((Rr - r_pref) / r_pref_sd) ** 2)
@@ -203,12 +240,16 @@ def disc_coverage(dirs: np.ndarray, axis: np.ndarray, alpha: float) -> float:
     return len(np.unique(bins[inner | outer])) / 12.0
 
 
-def ring_sectors(dirs: np.ndarray, axis: np.ndarray, alpha: float, width: float) -> int:
-    """How many of 8 sectors of the ring ``alpha < angle <= alpha + width`` around ``axis``
-    hold one of the unit directions ``dirs`` (a sphere hanging free leaves most empty)."""
+def ring_sectors(dirs: np.ndarray, axis: np.ndarray, alpha: float, width: float,
+                 n_sectors: int = 16, min_points: int = 2) -> int:
+    """How many of ``n_sectors`` sectors of the ring ``alpha < angle <= alpha + width`` around
+    ``axis`` hold at least ``min_points`` of the unit directions ``dirs`` (a sphere hanging
+    free leaves most empty: its chain or stand fills one to three; lone spurious returns none)."""
     theta, ang = polar_about(dirs, axis)
     sel = (theta > alpha) & (theta <= alpha + width)
-    return len(np.unique((ang[sel] / (2 * np.pi) * 8).astype(int) % 8))
+    cnt = np.bincount((ang[sel] / (2 * np.pi) * n_sectors).astype(int) % n_sectors,
+                      minlength=n_sectors)
+    return int((cnt >= min_points).sum())
 
 
 def find_candidates(points_m: np.ndarray, radius_m: float, half_angle_rad: float,
@@ -225,6 +266,7 @@ def find_candidates(points_m: np.ndarray, radius_m: float, half_angle_rad: float
     info = {"n_voxels": int(len(Q)), "voxel_m": voxel}
     keep, planes = remove_planes(Q, min_extent_m=6.0 * r, thr_m=voxel, rng=rng)
     info["planes_removed"] = len(planes)
+    info["noise_m"] = plane_range_noise_m(P, planes, voxel, rng)
     Qk = Q[keep]
     labels = cluster_points(Qk, 2.2 * voxel)
     ids, counts = np.unique(labels, return_counts=True)
@@ -243,7 +285,8 @@ def find_candidates(points_m: np.ndarray, radius_m: float, half_angle_rad: float
             bloom = rng_c * np.tan(half_angle_rad)
             thr = max(0.2 * r, 0.75 * voxel)
             found = ransac_sphere(X, 0.6 * r, 1.5 * r + 2.0 * bloom + 0.01, thr,
-                                  2.5 * r + bloom, rng, r_pref=r + bloom, r_pref_sd=0.25 * r)
+                                  2.5 * r + bloom, rng, n_hyp=96,
+                                  r_pref=r + bloom, r_pref_sd=0.25 * r)
             if found is None:
                 break
             c, rf, inl = found
@@ -272,12 +315,60 @@ def find_candidates(points_m: np.ndarray, radius_m: float, half_angle_rad: float
                 cands.append(Candidate(np.asarray(c, float), float(rf), support, float(purity),
                                        int(cid), float(quality)))
             X = X[~(ball | shell)]
-            if len(X) < min_vox:
+            if len(X) < 3 * min_vox:  # a second sphere in the same cluster needs some room
                 break
     cands.sort(key=lambda k: -k.quality)
     info["n_clusters"] = int((counts >= min_vox).sum())
     info["n_coarse_candidates"] = len(cands)
-    return _dedupe(cands, r)[:max_candidates], info
+    cands = _dedupe(cands, r)[:max_candidates]
+    if cands:
+        cands = prescreen(P, cands, r, half_angle_rad, info["noise_m"])
+        info["n_prescreened"] = len(cands)
+    return cands, info
+
+
+def prescreen(points_m: np.ndarray, cands: list[Candidate], r: float, half_angle_rad: float,
+              noise_m: float) -> list[Candidate]:
+    """Keep the candidates whose returns look like a blooming sphere before any fit.
+
+    For each, the cone-model range residuals at the coarse centre (moved nearer by the
+    blooming, see ``start_center``) of the points inside its disc: their robust spread
+    (``spread_m``, also tried with the radius the coarse fit suggests) is a few mm for a sphere
+    and centimetres for boxes, pontoons and rocks cut by the seabed. Kept: spread below
+    max(0.1 r, 2 x the plane noise, 2 x the best candidate's).
+    """
+    from calib_core.detect.sonar_fit import angle_to_axis_rad, cone_residuals
+
+    for k in cands:
+        best = np.inf
+        r_alt = float(np.clip(k.radius_m - np.linalg.norm(k.center_m) * np.tan(half_angle_rad),
+                              0.6 * r, 1.6 * r))
+        X = points_m[crop_ball(points_m, start_center(k, r), 2.6 * r + 0.05)]
+        if len(X) < 6:
+            k.spread_m = best
+            continue
+        R = np.linalg.norm(X, axis=1)
+        D = X / R[:, None]
+        for rr in (r, r_alt):
+            c = start_center(k, rr)
+            cn = float(np.linalg.norm(c))
+            ind = angle_to_axis_rad(D, c / cn) <= np.arcsin(min(rr / cn, 1.0)) + half_angle_rad
+            if ind.sum() < 6:
+                continue
+            a, _ = cone_residuals(c, rr, R[ind], D[ind], half_angle_rad)
+            best = min(best, 1.4826 * float(np.median(np.abs(a - np.median(a)))))
+        k.spread_m = best
+    lim = max(0.1 * r, 2.0 * noise_m if np.isfinite(noise_m) else 0.0,
+              2.0 * min(k.spread_m for k in cands))
+    return [k for k in cands if k.spread_m <= lim]
+
+
+def start_center(cand: Candidate, radius_m: float) -> np.ndarray:
+    """The coarse free-radius centre sits too far by about (apparent - true radius): the
+    start for a cone-model fit of a sphere of ``radius_m``."""
+    c0 = cand.center_m
+    cn0 = float(np.linalg.norm(c0))
+    return c0 * max(cn0 - (cand.radius_m - radius_m), radius_m * 1.5) / cn0
 
 
 def _dedupe(cands: list[Candidate], r: float) -> list[Candidate]:

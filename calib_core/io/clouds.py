@@ -170,39 +170,50 @@ def _read_open3d(path: Path):
 
 
 def _read_text(path: Path):
+    fast = _read_text_fast(path)
+    if fast is not None:
+        return fast
     try:
         text = path.read_text(encoding="utf-8-sig", errors="strict")
     except UnicodeDecodeError:
         raise SessionError(path, "not a text point cloud (invalid UTF-8: binary data?)") from None
-    fast = _read_text_fast(text)
-    if fast is not None:
-        return fast
     return _read_text_rows(path, text)
 
 
-def _read_text_fast(text: str):
-    """numpy's C parser for the common, regular file; None when it is irregular (then the
-    row-by-row reader below gives a message with the line number)."""
-    lines = text.splitlines(keepends=True)
-    pos, first = 0, None
-    for i, line in enumerate(lines):  # blank, comment and non-numeric header rows before the data
-        s = line.strip()
-        if not s or s.startswith("#"):
-            continue
-        try:
-            [float(p) for p in re.split(r"[,\s;]+", s) if p]
-        except ValueError:
-            continue
-        first, pos = s, i
-        break
-    if first is None:
-        return None
-    delim = "," if "," in first else ";" if ";" in first else None
-    try:
-        arr = np.loadtxt(io.StringIO("".join(lines[pos:])), delimiter=delim, comments="#", ndmin=2, dtype=np.float64)
-    except ValueError:
-        return None
-    if arr.shape[1] < 3:
+def _read_text_fast(path: Path):
+    """numpy's C parser, streaming from the file, for the common regular file (bounded memory).
+
+    Returns None when the file is irregular (odd header, ragged rows, bad bytes); then the
+    row-by-row reader below parses it or says which line is wrong.
+    """
+    with open(path, "rb") as f:
+        offset, first = 0, None
+        for i in range(1000):  # blank, comment and non-numeric header rows before the data
+            line = f.readline(4096)
+            if not line or (len(line) == 4096 and not line.endswith(b"\n")):
+                return None
+            try:
+                s = line.decode("utf-8-sig" if i == 0 else "utf-8").strip()
+            except UnicodeDecodeError:
+                return None
+            if s and not s.startswith("#"):
+                try:
+                    [float(p) for p in re.split(r"[,\s;]+", s) if p]
+                    first = s
+                    break
+                except ValueError:
+                    pass
+            offset += len(line)
+        if first is None:
+            return None
+        delim = "," if "," in first else ";" if ";" in first else None
+        f.seek(offset)
+        with io.TextIOWrapper(f, encoding="utf-8", errors="strict", newline=None) as tf:
+            try:
+                arr = np.loadtxt(tf, delimiter=delim, comments="#", ndmin=2, dtype=np.float64)
+            except (ValueError, UnicodeDecodeError):
+                return None
+    if arr.ndim != 2 or arr.shape[1] < 3 or len(arr) == 0:
         return None
     return arr[:, :3], (arr[:, 3] if arr.shape[1] >= 4 else None)
 

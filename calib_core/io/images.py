@@ -102,8 +102,12 @@ def load_video_frames(path: str | Path, start_s: float = 0.0, end_s: float | Non
     try:
         if not cap.isOpened():
             raise SessionError(path, "cannot open video (corrupt or unsupported codec)")
-        fps = cap.get(cv2.CAP_PROP_FPS) or 25.0
-        n = int(cap.get(cv2.CAP_PROP_FRAME_COUNT) or 0)
+        fps = cap.get(cv2.CAP_PROP_FPS)
+        fps = fps if np.isfinite(fps) and 0 < fps < 10_000 else 25.0  # some containers report 0 or NaN
+        n = cap.get(cv2.CAP_PROP_FRAME_COUNT)
+        n = int(n) if np.isfinite(n) and 0 < n < 1e9 else 0
+        if not (np.isfinite(start_s) and (end_s is None or np.isfinite(end_s))):
+            raise SessionError(path, f"background window {start_s}-{end_s} s is not finite")
         first = int(max(0.0, start_s) * fps)
         last = n - 1 if end_s is None else min(n - 1, int(end_s * fps))
         if n <= 0 or last < first:

@@ -29,7 +29,7 @@ def load_intrinsics(path: str | Path) -> CameraModel:
     if head.startswith("%YAML:") or "!!opencv-matrix" in text or head.startswith("<?xml"):
         return _load_opencv_storage(path)
     try:
-        data = yaml.safe_load(text)
+        data = yaml.load(text, Loader=getattr(yaml, "CSafeLoader", yaml.SafeLoader))  # libyaml: same YAML, faster
     except yaml.YAMLError as e:
         raise SessionError(path, f"invalid YAML: {_yaml_where(e)}") from None
     except RecursionError:
@@ -52,7 +52,7 @@ def _matrix(path: Path, data: dict, key: str, size: int | tuple[int, ...]) -> np
     vals = node.get("data") if isinstance(node, dict) else node
     try:
         arr = np.asarray(vals, dtype=float).ravel()
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError, RecursionError):
         raise SessionError(path, f"'{key}' must be a list of numbers") from None
     sizes = (size,) if isinstance(size, int) else size
     if arr.size not in sizes:

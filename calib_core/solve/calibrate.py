@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import datetime as _dt
 import math
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass
 
 import numpy as np
 
@@ -35,7 +35,7 @@ class CalibrateOptions:
     robust: None, "huber" or "cauchy" (robust loss on each capture's Mahalanobis distance).
     detect: detect missing / auto entries afresh (False: use auto entries as they are).
     leave_one_out: compute leave-one-out residuals. joint: solve tied cameras jointly.
-    check_outliers: run RANSAC to find captures that do not fit.
+    check_outliers: run RANSAC to find captures that do not fit. seed: RANSAC sampling seed.
     """
 
     estimate_scale: bool = False
@@ -45,7 +45,6 @@ class CalibrateOptions:
     joint: bool = True
     check_outliers: bool = True
     seed: int = 0
-    extra: dict = field(default_factory=dict)
 
 
 def _options(options) -> CalibrateOptions:
@@ -209,7 +208,7 @@ def calibrate_session(session, detections: dict, options=None, progress=None) ->
         "session": session.name,
         "tool": {"name": "sonarcal", "version": __version__},
         "created": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
-        "options": {k: v for k, v in asdict(opts).items() if k != "extra"},
+        "options": asdict(opts),
         "cameras": entries,
         "range_scale": scale,
         "joint": joint,

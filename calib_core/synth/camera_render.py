@@ -69,7 +69,7 @@ class RenderOptions:
     exposure: float = 1.0
 
 
-@lru_cache(maxsize=8)
+@lru_cache(maxsize=4)  # ~50 MB per 1080p camera
 def _pixel_rays_cached(w: int, h: int, K: tuple, dist: tuple) -> np.ndarray:
     cam = CameraModel(w, h, np.array(K).reshape(3, 3), np.array(dist))
     u, v = np.meshgrid(np.arange(w, dtype=float), np.arange(h, dtype=float))

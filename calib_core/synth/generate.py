@@ -26,6 +26,7 @@ from calib_core.synth.scene import Scene, raycast
 from calib_core.synth.sonar_sim import SonarConfig, simulate_scan
 
 SOUND_SPEED = 1481.0
+VIDEO_FPS = 5
 
 
 def generate_session(out_dir, preset, seed: int, progress=None, **overrides) -> Path:
@@ -44,6 +45,8 @@ def generate_session(out_dir, preset, seed: int, progress=None, **overrides) -> 
     cams = list(rig.cams)
     diameter = 0.22 if P.name == "canal" else float(r_rig.uniform(0.18, 0.30))
     radius = diameter / 2
+    # a wrong stated diameter is too big or too small, by the preset's factor
+    d_factor = P.diameter_factor if P.diameter_factor == 1 or r_rig.random() < 0.5 else 2 - P.diameter_factor
     style = world.sample_target_style(r_rig, radius)
     water = world.sample_water(r_scene, P.bright)
     opts = RenderOptions(aa=4, blur_sigma_px=float(r_scene.uniform(0.5, 1.2)) * max(P.scale, 0.35),
@@ -93,34 +96,39 @@ def generate_session(out_dir, preset, seed: int, progress=None, **overrides) -> 
         if progress is not None:
             progress(done, total, label)
 
-    def target_parts(c):
+    def target_parts(c, rng):
         parts = [world.target(style, c, radius, P.bright)]
-        hold = (world.stand(r_scene, c - [0, 0, radius], seabed_z) if seabed_z is not None
-                else world.chain(r_scene, c + [0, 0, radius - 0.5 * style["wire_m"]], surface_z))
+        hold = (world.stand(rng, c - [0, 0, radius], seabed_z) if seabed_z is not None
+                else world.chain(rng, c + [0, 0, radius - 0.5 * style["wire_m"]], surface_z))
         return parts + ([hold] if hold is not None else [])
 
     # ---- captures -------------------------------------------------------------------
     manifest_caps, gt_caps = [], {}
+    first_radiance = {}
     ext = P.cloud_format
     ids = [f"p{i + 1:02d}" for i in range(P.n_captures)] + [f"f{i + 1:02d}" for i in range(P.n_flange)]
     for k, cid in enumerate(ids):
         is_target = k < P.n_captures
-        extra = (world.decoys(r_scene, rig, centers[k], radius, int(r_scene.integers(2, 5)))
+        # one random stream per capture: changing one capture's content leaves the others alone
+        r_cap = np.random.default_rng([int(seed), 7919, 1000 + k])
+        extra = (world.decoys(r_cap, rig, centers[k], radius, int(r_cap.integers(2, 5)))
                  if P.decoys and is_target else [])
         if is_target:
-            scan_scene = Scene(tuple(static + target_parts(centers[k]) + extra))
-            img_scene = scan_scene if k != moved_idx else Scene(tuple(static + target_parts(image_centers[k]) + extra))
+            scan_scene = Scene(tuple(static + target_parts(centers[k], r_cap) + extra))
+            img_scene = scan_scene if k != moved_idx else Scene(tuple(static + target_parts(image_centers[k], r_cap) + extra))
         else:
-            scan_scene = img_scene = Scene(tuple(static + world.flange_assembly(r_scene, rig, surface_z)))
-        cloud = simulate_scan(scan_scene, rig.T_world_sonar, cfg, r_sonar)
+            scan_scene = img_scene = Scene(tuple(static + world.flange_assembly(r_cap, rig, surface_z)))
+        cloud = simulate_scan(scan_scene, rig.T_world_sonar, cfg, r_cap)
         save_cloud(out / "clouds" / f"{cid}{ext}", cloud)
         tick(f"{cid} sonar")
         images = {}
         for cam_name in cams:
             cam, T_wc = rig.cams[cam_name]
             L, _ = render_radiance(img_scene, cam, T_wc, water, aa=opts.aa)
+            if k == 0:
+                first_radiance[cam_name] = L
             rel = f"images/{cam_name}/{cid}.jpg"
-            save_image(out / rel, finish_image(L, opts, r_noise), jpeg_quality=P.jpeg_quality)
+            save_image(out / rel, finish_image(L, opts, r_cap), jpeg_quality=P.jpeg_quality)
             images[cam_name] = rel
             tick(f"{cid} {cam_name}")
         manifest_caps.append({"id": cid, "cloud": f"clouds/{cid}{ext}", "images": images})
@@ -136,16 +144,24 @@ def generate_session(out_dir, preset, seed: int, progress=None, **overrides) -> 
         cam_entries[cam_name] = {"intrinsics": f"intrinsics/{cam_name}.yaml"}
         if P.n_backgrounds > 0:
             L, _ = render_radiance(bg_scene, cam, T_wc, water, aa=opts.aa)
-            for j in range(P.n_backgrounds):
-                save_image(out / "backgrounds" / cam_name / f"bg{j:02d}.jpg", finish_image(L, opts, r_noise),
-                           jpeg_quality=P.jpeg_quality)
-            cam_entries[cam_name]["background"] = f"backgrounds/{cam_name}/"
+            if P.background_video:
+                # 1 s with the target still in view, then the sphere-free window
+                frames = [finish_image(first_radiance[cam_name], opts, r_noise) for _ in range(VIDEO_FPS)]
+                frames += [finish_image(L, opts, r_noise) for _ in range(max(2, P.n_backgrounds) * VIDEO_FPS)]
+                _save_video(out / "backgrounds" / f"{cam_name}.avi", frames)
+                cam_entries[cam_name]["background"] = f"backgrounds/{cam_name}.avi"
+                cam_entries[cam_name]["background_window"] = [1.2, None]
+            else:
+                for j in range(P.n_backgrounds):
+                    save_image(out / "backgrounds" / cam_name / f"bg{j:02d}.jpg", finish_image(L, opts, r_noise),
+                               jpeg_quality=P.jpeg_quality)
+                cam_entries[cam_name]["background"] = f"backgrounds/{cam_name}/"
         tick(f"{cam_name} background")
 
     session = {
         "format": "sonar-camera-session/1",
         "name": f"synth-{P.name}-seed{seed}",
-        "sphere": {"diameter": round(diameter * P.diameter_factor, 4)},
+        "sphere": {"diameter": round(diameter * d_factor, 4)},
         "sonar": {"model": "BlueView BV5000-2250 (simulated)", "sound_speed": SOUND_SPEED,
                   "beam_width_deg": cfg.beam_width_deg},
         "cameras": cam_entries,
@@ -168,6 +184,8 @@ def generate_session(out_dir, preset, seed: int, progress=None, **overrides) -> 
                    "true_sound_speed_m_s": SOUND_SPEED * P.range_scale}
     gt["world"] = {"T_world_sonar": to_list(rig.T_world_sonar), "surface_z_m": surface_z,
                    "seabed_z_m": seabed_z, "attenuation_per_m": water.attenuation_per_m}
+    gt["backgrounds"] = {c: ({"video": True, "fps": VIDEO_FPS, "target_until_s": 1.0} if P.background_video
+                             else {"video": False, "frames": P.n_backgrounds}) for c in cams}
     gt["captures"] = gt_caps
     atomic_write_yaml(out / GT_FILE, gt)
     atomic_write_yaml(out / "session.yaml", session)
@@ -213,6 +231,26 @@ def _ring_points(C, radius, n=36):
     phi = np.linspace(0, 2 * np.pi, n, endpoint=False)
     tang = (np.cos(phi)[:, None] * e1 + np.sin(phi)[:, None] * e2)
     return C[None] - w[None] * radius * np.sin(a) + tang * radius * np.cos(a)
+
+
+def _save_video(path: Path, frames_rgb: list) -> None:
+    """MJPG .avi written to a temporary folder, then moved into place atomically."""
+    import tempfile
+
+    import cv2
+
+    from calib_core.io.atomic import atomic_write_bytes
+
+    h, w = frames_rgb[0].shape[:2]
+    with tempfile.TemporaryDirectory() as tmp:
+        tmp_path = Path(tmp) / path.name
+        vw = cv2.VideoWriter(str(tmp_path), cv2.VideoWriter_fourcc(*"MJPG"), float(VIDEO_FPS), (w, h))
+        if not vw.isOpened():
+            raise RuntimeError("OpenCV cannot write MJPG video here")
+        for f in frames_rgb:
+            vw.write(cv2.cvtColor(f, cv2.COLOR_RGB2BGR))
+        vw.release()
+        atomic_write_bytes(path, tmp_path.read_bytes())
 
 
 def _measured(rng, rig) -> dict:

@@ -23,8 +23,11 @@ class Preset:
     scene: "canal" (open water, chain, pontoons), "seabed" (seabed, wall/dock, stand, clutter).
     bright: bright sphere on dark water (instead of a dark mesh on bright backlit water).
     n_backgrounds: sphere-free frames per camera (0 = no background in session.yaml).
+    background_video: write the background as an MJPG .avi whose first second still shows the
+        target (session.yaml then gives ``background_window`` to skip it).
     decoys: other round things (spheres and discs of other sizes) in image and cloud.
-    diameter_factor: session.yaml states the diameter times this (wrong-diameter test).
+    diameter_factor: session.yaml states the diameter times this or times (2 - this), by seed
+        (wrong-diameter test: ~30 % too big or too small).
     cloud_format: suffix of the cloud files (".ply", ".pcd", ".npy", ".xyz").
     scale: image resolution factor (1.0 = 1920x1080); K scales with it.
     corner_fraction: share of captures aimed near an image corner.
@@ -43,6 +46,7 @@ class Preset:
     scene: str = "canal"
     bright: bool = False
     n_backgrounds: int = 3
+    background_video: bool = False
     decoys: bool = False
     diameter_factor: float = 1.0
     cloud_format: str = ".ply"
@@ -68,7 +72,7 @@ _LIST = [
     Preset("flange", "target captures plus non-target captures of a steel pipe with a square flange "
            "(paper Fig. 5)", n_captures=7, n_flange=2, pan_step_deg=0.5),
     Preset("seabed", "seabed, a wall or dock, the sphere on a stand instead of a chain, clutter",
-           n_captures=8, pan_step_deg=0.75, scene="seabed", cloud_format=".npy"),
+           n_captures=8, pan_step_deg=0.75, scene="seabed", cloud_format=".npy", background_video=True),
     Preset("bright", "bright sphere on dark water", n_captures=8, pan_step_deg=0.75, bright=True),
     Preset("nobg", "no background frames", n_captures=8, pan_step_deg=0.75, n_backgrounds=0),
     Preset("decoys", "other round things (spheres, discs of other sizes) in image and cloud", n_captures=8,

@@ -17,6 +17,7 @@ from calib_core.synth.scene import Box, Capsule, Cylinder, Disc, Group, Material
 DARK_MESH = Material((0.05, 0.05, 0.06), 0.9)
 BRIGHT_MESH = Material((0.92, 0.80, 0.35), 0.9)
 CHAIN = Material((0.10, 0.10, 0.10), 0.55)
+ROPE = Material((0.20, 0.19, 0.16), 0.4)
 STEEL = Material((0.38, 0.36, 0.33), 0.95)
 
 
@@ -114,12 +115,14 @@ def target(rng_style, center_world, radius_m: float, bright: bool):
 
 def sample_target_style(rng, radius_m: float) -> dict:
     tilt = Rotation.from_rotvec(rng.normal(0, np.deg2rad(8), 3)).as_matrix()
-    return {"n_lat": int(rng.integers(8, 15)), "n_lon": int(rng.integers(12, 25)),
-            "wire_m": float(rng.uniform(0.003, 0.006)) * radius_m / 0.11, "pole": tuple(tilt[:, 2])}
+    return {"n_lat": int(rng.integers(10, 15)), "n_lon": int(rng.integers(16, 25)),
+            "wire_m": float(rng.uniform(0.0035, 0.006)) * radius_m / 0.11, "pole": tuple(tilt[:, 2])}
 
 
-def chain(rng, top_world, surface_z: float, radius_m: float = 0.006, tag: str = "chain"):
-    """A chain from ``top_world`` up to the surface, slightly swaying (capsule segments)."""
+def chain(rng, top_world, surface_z: float, radius_m: float = 0.006, tag: str = "chain", links: bool = True):
+    """A chain from ``top_world`` up to the surface, slightly swaying: interlocking links
+    (each ring = 4 capsules, an approximation of a torus-like link) of overall half width
+    ~``radius_m``, or a smooth rope of radius ``radius_m`` if ``links`` is False."""
     top = np.asarray(top_world, float)
     L = surface_z - top[2]
     if L <= 0.05:
@@ -130,8 +133,29 @@ def chain(rng, top_world, surface_z: float, radius_m: float = 0.006, tag: str = 
     s = np.linspace(0, 1, n + 1)
     pts = np.column_stack([top[0] + sway[0] * s + bend[0] * np.sin(np.pi * s),
                            top[1] + sway[1] * s + bend[1] * np.sin(np.pi * s), top[2] + L * s])
-    segs = tuple(Capsule(tuple(a), tuple(b), radius_m) for a, b in zip(pts[:-1], pts[1:]))
-    return Group(segs, CHAIN, tag=tag)
+    if not links:
+        segs = tuple(Capsule(tuple(a), tuple(b), radius_m) for a, b in zip(pts[:-1], pts[1:]))
+        return Group(segs, CHAIN if tag == "chain" else ROPE, tag=tag)
+    # link chain: stadium-like rings of wire radius rw, alternately turned 90 deg about the axis
+    rw = 0.5 * radius_m
+    pitch, half_w = 6 * rw, 1.8 * rw
+    A = 0.5 * pitch + 1.5 * rw  # consecutive links overlap (interlock) along the axis
+    segs, k = [], 0
+    for a, b in zip(pts[:-1], pts[1:]):
+        ax = (b - a) / np.linalg.norm(b - a)
+        e1 = np.cross(ax, [1.0, 0, 0])
+        e1 /= np.linalg.norm(e1)
+        e2 = np.cross(ax, e1)
+        group = []
+        for s_k in np.arange(0.5 * pitch, np.linalg.norm(b - a), pitch):
+            lat = e1 if k % 2 == 0 else e2
+            k += 1
+            c = a + ax * s_k
+            corners = [c + sa * A * ax + sl * half_w * lat for sa, sl in ((-1, -1), (1, -1), (1, 1), (-1, 1))]
+            group.append(Group(tuple(Capsule(tuple(corners[i]), tuple(corners[(i + 1) % 4]), rw) for i in range(4))))
+        if group:
+            segs.append(Group(tuple(group)))
+    return Group(tuple(segs), CHAIN, tag=tag)
 
 
 def stand(rng, bottom_world, seabed_z: float):
@@ -195,5 +219,5 @@ def flange_assembly(rng, rig, surface_z: float):
     R = np.column_stack([x, y, np.cross(x, y)])
     flange = Box(tuple(p1), (0.025, side, side), tuple(map(tuple, R)), STEEL, tag="flange")
     pipe = Cylinder(tuple(p0), tuple(p1), r, STEEL, tag="pipe")
-    ropes = [chain(rng, p + [0, 0, r], surface_z, 0.005, tag="rope") for p in (p0 + a * 0.2, p1 - a * 0.2)]
+    ropes = [chain(rng, p + [0, 0, r], surface_z, 0.005, tag="rope", links=False) for p in (p0 + a * 0.2, p1 - a * 0.2)]
     return [pipe, flange] + [rp for rp in ropes if rp is not None]
