@@ -233,8 +233,8 @@ def main(argv=None):
     sc = [part_b(a.scale_trials, n, 0.3, 0.003) for n in (9, 30)]
     sc += [part_b(a.scale_trials, n, 0.3, 0.003, stereo_sigma=(0.02, 0.0003)) for n in (9, 30)]
     for r in sc:
-        print(f"N={r['n']:>2} stereo {r['stereo'][0]:.2f} deg/{1000 * r['stereo'][1]:.1f} mm: RMS scale error {100 * r['rms']:.3f} %  bound {100 * r['bound']:.3f} %  "
-              f"ratio {r['rms'] / r['bound']:.3f}  bias {100 * r['bias']:+.3f} %  ({r['ms']:.0f} ms per joint calibration)")
+        print(f"N={r['n']:>2} stereo {r['stereo'][0]:.2f} deg/{1000 * r['stereo'][1]:.1f} mm: "
+              f"RMS scale error {100 * r['rms']:.3f} %  bound {100 * r['bound']:.3f} %  ratio {r['rms'] / r['bound']:.3f}  bias {100 * r['bias']:+.3f} %  ({r['ms']:.0f} ms per joint calibration)")
     t_cal = part_timing()
     print(f"\nC. calibrate_session, 2 cameras x 9 captures (RANSAC, ML, scale, leave-one-out, joint, Table I), "
           f"detections given: {t_cal:.2f} s")

@@ -58,7 +58,10 @@ def run_intrinsics(args) -> int:
     name = args.name or out.stem
     images = _load(folder_images(args.folder))
     with progress_bar("checkerboard") as cb:
-        res = calibrate_intrinsics(images, pattern, args.square, name=name, fix_k3=not args.k3, progress=cb)
+        try:
+            res = calibrate_intrinsics(images, pattern, args.square, name=name, fix_k3=not args.k3, progress=cb)
+        except SessionError as e:
+            raise SessionError(e.path or Path(args.folder), e.problem) from None
     save_intrinsics_ros(out, res.cam, name)
     c = res.cam
     console.print(f"[bold]{name}[/bold]: {c.width_px} x {c.height_px}, fx {c.fx:.2f} fy {c.fy:.2f} "
@@ -91,11 +94,17 @@ def run_stereo(args) -> int:
         else:
             imgs = [(t[0], t[idx]) for t in loaded]
             with progress_bar(f"{which} intrinsics") as cb:
-                r = calibrate_intrinsics(imgs, pattern, args.square, name=which, progress=cb)
+                try:
+                    r = calibrate_intrinsics(imgs, pattern, args.square, name=which, progress=cb)
+                except SessionError as e:
+                    raise SessionError(e.path or Path(folder), e.problem) from None
             console.print(f"{which}: intrinsics from {folder} (RMS {r.rms_px:.3f} px; give --intrinsics{idx} to use a file)")
             cams.append(r.cam)
     with progress_bar("stereo") as cb:
-        res = calibrate_stereo(loaded, cams[0], cams[1], pattern, args.square, progress=cb)
+        try:
+            res = calibrate_stereo(loaded, cams[0], cams[1], pattern, args.square, progress=cb)
+        except SessionError as e:
+            raise SessionError(e.path or Path(args.folder1), e.problem) from None
     key = f"T_{n2}_{n1}"
     T = res.T_cam2_cam1
     doc = {"format": "sonar-camera-stereo/1", key: [[float(v) for v in row] for row in T],

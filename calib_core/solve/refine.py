@@ -225,7 +225,8 @@ class RefineResult:
         return self.chi2 / self.dof if self.dof > 0 else float("nan")
 
 
-def _weights_for(problem: RigProblem, state: RigState, loss, k):
+def weights_for(problem: RigProblem, state: RigState, loss: str | None, k: float):
+    """Per group: whitening matrices (robust weights folded in) and the robust weights, at ``state``."""
     Ws, ws = [], []
     for r, S, _ in problem.group_terms(state):
         w = irls_weights(mahalanobis2(r, S), loss, k)
@@ -261,14 +262,15 @@ def refine(problem: RigProblem, state0: RigState, robust: str | None = None, rob
     converged = False
     n_outer = 0
     for n_outer in range(1, max_outer + 1):
-        Ws, ws = _weights_for(problem, state, robust, robust_k)
+        Ws, ws = weights_for(problem, state, robust, robust_k)
         sol = least_squares(lambda th: problem.whitened(problem.apply(state, th), Ws), np.zeros(problem.n_params),
-                            jac=lambda th: problem.whitened_jacobian(state, th, Ws), method="lm", xtol=1e-14, ftol=1e-14, gtol=1e-14, max_nfev=200 * problem.n_params)
+                            jac=lambda th: problem.whitened_jacobian(state, th, Ws), method="lm",
+                            xtol=1e-14, ftol=1e-14, gtol=1e-14, max_nfev=200 * problem.n_params)
         state = problem.apply(state, sol.x)
         if np.max(np.abs(sol.x)) < step_tol and n_outer > 1:
             converged = True
             break
-    Ws, ws = _weights_for(problem, state, robust, robust_k)
+    Ws, ws = weights_for(problem, state, robust, robust_k)
     r = problem.whitened(state, Ws)
     J = jacobian(problem, state, Ws)
     cov, eigmin = covariance_from_jacobian(J)

@@ -62,9 +62,9 @@ class CameraSolution:
 
 def scale_observability(problem: RigProblem, state: RigState, max_sigma: float = MAX_SCALE_SIGMA):
     """(observable, sigma of the scale, note) from the information matrix with the scale freed."""
-    from calib_core.solve.refine import _weights_for, covariance_from_jacobian, jacobian
+    from calib_core.solve.refine import covariance_from_jacobian, jacobian, weights_for
 
-    Ws, _ = _weights_for(problem, state, None, 1.0)
+    Ws, _ = weights_for(problem, state, None, 1.0)
     cov, eigmin = covariance_from_jacobian(jacobian(problem, state, Ws))
     sigma = math.sqrt(max(cov[-1, -1], 0.0))
     if eigmin < 1e-9:
