@@ -16,10 +16,16 @@ outside the true silhouette, nearer than the surface along their centre line: th
 bigger and closer. Fitting ``c`` with this model removes that bias; the naive fits (Euclidean
 distance to a sphere of known or free radius) are kept as baselines.
 
-Pipeline: coarse candidates on a thinned, voxelised cloud without its large planes
-(:mod:`.sonar_search`); each candidate is re-fitted at full resolution inside a crop with the
-cone model and judged (coverage of the expected disc of beams, purity of the returns inside
-it, residual scale, diameter); more than one acceptable candidate gives "two candidates".
+Pipeline: coarse candidates on a thinned, voxelised cloud without its large planes, ranked
+and pre-screened (:mod:`.sonar_search`); the best few are re-fitted at full resolution inside
+a crop with the cone model and judged (residual scale against the sonar noise measured on the
+planes, coverage of the expected disc of beams, purity of the returns inside it, returns all
+around it, diameter). More than one acceptable candidate gives "two candidates"; a sphere of
+another size is reported, not used. The effective beam width can be estimated per session
+with :func:`calib_core.detect.sonar_beam.estimate_beam_width_deg`.
+
+Approximations: circular uniform beam cone (no beam pattern, side lobes or multipath); the
+covariance reflects range noise only (not a wrong beam width or radius).
 """
 
 from __future__ import annotations
@@ -45,7 +51,7 @@ METHODS = ("cone-model", "known-radius", "free-radius")
 MIN_POINTS = 20
 QUICK_POINTS = 150  # points of a candidate's crop for the first look
 JUDGE_POINTS = 600  # points of a candidate's crop used to judge it (the final fit uses all)
-MAX_JUDGED = 10  # candidates pre-screened, best coarse quality first
+MAX_JUDGED = 16  # candidates pre-screened (cheap), best coarse quality first
 MAX_FULL = 5  # of those, judged at full resolution
 RING_PROBLEM = "part of a larger surface"
 MAX_SIGMA_REL = 0.15  # residual scale above this fraction of the radius: not this sphere
@@ -54,9 +60,11 @@ MIN_COVERAGE = 0.7
 MIN_COVERAGE_SEEDED = 0.4
 MIN_PURITY = 0.6
 MAX_RING_SECTORS = 5  # of 16 around the disc: a chain or a stand, not a seabed or a wall
-# relative (and at least 3 sigma): a larger difference between the diameter the cone model
-# sees and session.yaml's is reported, and the sphere is then fitted with the diameter it shows
-DIAMETER_TOL = 0.08
+# relative: a larger difference between the diameter the cone model sees and session.yaml's
+# makes it "a sphere of another size" (a decoy, or a wrong diameter): reported, never used,
+# unless an operator picked it (then fitted with the diameter it shows, with a warning)
+DIAMETER_TOL = 0.15
+DIAMETER_WARN = 0.06  # relative: above it a found sphere carries a warning
 
 
 @dataclass
@@ -186,10 +194,12 @@ def _judge(P: np.ndarray, cand: Candidate, r: float, h: float, seeded: bool,
     D = X / R[:, None]
     coverage, purity, problem = _assess(X, R, D, fit, r, h, seeded, noise_m)
     r_fit, r_cone = r, float("nan")
-    if not problem:  # the diameter the cone model supports, precisely: on the inliers
-        fine = fit_sphere(X[fit.inliers], fit.center_m, r, model="cone", free_radius=True,
-                          half_angle_rad=h, sigma0_m=max(fit.sigma_m, 1e-3), n_rounds=2,
-                          warm=True)
+    if not problem:  # the diameter the cone model supports: free radius, robustly, on the
+        # returns inside the disc of the known-radius fit (its chain or stand lies outside)
+        cn = float(np.linalg.norm(fit.center_m))
+        disc = angle_to_axis_rad(D, fit.center_m / cn) <= 1.05 * (np.arcsin(r / cn) + h)
+        fine = fit_sphere(X[disc], fit.center_m, r, model="cone", free_radius=True,
+                          half_angle_rad=h, sigma0_m=max(fit.sigma_m, 1e-3))
         r_cone = fine.radius_m if fine.ok else float("nan")
     start_free = other_size_start() if problem or not abs(r_cone - r) <= DIAMETER_TOL * r else None
     if start_free is not None:
@@ -265,7 +275,8 @@ def detect_sphere_in_cloud(points_sonar_m: np.ndarray, sphere_radius_m: float,
     W = P if base is None else P[base]
     cands, info = find_candidates(W, r, h, rng, max_candidates=MAX_JUDGED)
     if not cands:
-        return _not_found("no sphere-like cluster", method, n_points=n_all, **info)
+        return _not_found("no sphere-like cluster", method, n_points=n_all,
+                          n_clusters=int(info.get("n_clusters", 0)))
     if seed is not None:
         cands = sorted(cands, key=lambda k: np.linalg.norm(k.center_m - seed))
         cands = [k for k in cands if np.linalg.norm(k.center_m - seed) < seed_radius_m + 2 * r]
@@ -349,6 +360,10 @@ def _finish(P, W, base, j: _Judged, r, h, method, n_all, info, extras) -> SonarD
     if other_size:
         extras["warning"] = (f"sonar sees a sphere of diameter {2 * j.radius_cone_m:.3f} m, "
                              f"session.yaml says {2 * r:.3f} m")
+    elif np.isfinite(j.radius_cone_m) and abs(j.radius_cone_m - r) > DIAMETER_WARN * r:
+        extras["warning"] = (f"sonar sees a sphere of diameter {2 * j.radius_cone_m:.3f} m, "
+                             f"session.yaml says {2 * r:.3f} m: check the diameter or the "
+                             f"beam width (sonar_beam.estimate_beam_width_deg)")
     if other_size and method == "cone-model":
         extras["fitted_with_diameter_m"] = round(2 * cone.radius_m, 4)
     return SonarDetection(

@@ -58,15 +58,9 @@ def cone_first_return_range_m(dirs: np.ndarray, center_sonar_m, radius_m: float,
 def cone_residuals(center_sonar_m, radius_m: float, ranges_m: np.ndarray, dirs: np.ndarray,
                    half_angle_rad: float) -> tuple[np.ndarray, np.ndarray]:
     """(range residual, angular residual) in metres for each point, see module docs."""
-    c = np.asarray(center_sonar_m, float)
-    cn = max(float(np.linalg.norm(c)), 1e-9)
-    r = min(abs(float(radius_m)), 0.999 * cn)
-    theta = angle_to_axis_rad(dirs, c / cn)
-    phi = np.maximum(theta - half_angle_rad, 0.0)
-    phi_t = np.arcsin(r / cn)
-    phc = np.minimum(phi, phi_t)
-    rho = cn * np.cos(phc) - np.sqrt(np.maximum(r * r - (cn * np.sin(phc)) ** 2, 0.0))
-    return ranges_m - rho, ranges_m * np.maximum(phi - phi_t, 0.0)
+    a, b, _ = _cone_terms(np.asarray(center_sonar_m, float).reshape(3), radius_m, ranges_m, dirs,
+                          half_angle_rad, False)
+    return a, b
 
 
 @dataclass

@@ -280,7 +280,7 @@ def find_candidates(points_m: np.ndarray, radius_m: float, half_angle_rad: float
         ext = np.ptp(X, axis=0).max()
         if ext < 0.6 * r:
             continue
-        for _attempt in range(2):
+        for _attempt in range(min(6, 2 + len(X) // 200)):  # big clusters hide more
             rng_c = float(np.linalg.norm(X.mean(axis=0)))
             bloom = rng_c * np.tan(half_angle_rad)
             thr = max(0.2 * r, 0.75 * voxel)
