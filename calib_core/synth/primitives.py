@@ -281,21 +281,25 @@ class Box:
     def intersect(self, o, d, acoustic):
         R = np.asarray(self.R, float)
         h = np.asarray(self.half_m, float)
+        if o.ndim == 2 and len(o) and o.strides[0] == 0:  # one shared origin: transform it once
+            o = o[:1]
         ol = (o - _vec(self.center_m)) @ R
         dl = d @ R
         with np.errstate(divide="ignore", invalid="ignore"):
-            t1 = (-h - ol) / dl
-            t2 = (h - ol) / dl
-        tlo, thi = np.minimum(t1, t2), np.maximum(t1, t2)
-        tlo = np.where(np.isnan(tlo), -INF, tlo)
-        thi = np.where(np.isnan(thi), INF, thi)
-        tnear, tfar = tlo.max(axis=1), thi.min(axis=1)
+            inv = 1.0 / dl
+            t1 = (-h - ol) * inv
+            t2 = (h - ol) * inv
+        tlo, thi = np.minimum(t1, t2), np.maximum(t1, t2)  # NaN (origin on a slab face) -> NaN-free below
+        np.nan_to_num(tlo, copy=False, nan=-INF)
+        np.nan_to_num(thi, copy=False, nan=INF)
+        ax_lo, ax_hi = tlo.argmax(axis=1), thi.argmin(axis=1)
+        rows = np.arange(len(d))
+        tnear, tfar = tlo[rows, ax_lo], thi[rows, ax_hi]
         hit = (tnear <= tfar) & (tfar > T_MIN)
         enter = tnear > T_MIN
         t = np.where(hit, np.where(enter, tnear, tfar), INF)
-        ax = np.where(enter, tlo.argmax(axis=1), thi.argmin(axis=1))
-        nl = np.zeros_like(ol)
-        rows = np.arange(len(o))
+        ax = np.where(enter, ax_lo, ax_hi)
+        nl = np.zeros((len(d), 3))
         nl[rows, ax] = -np.sign(dl[rows, ax])
         return t, nl @ R.T
 

@@ -30,6 +30,9 @@ import numpy as np
 from calib_core.synth.primitives import (INF, T_MIN, Box, Capsule, Cylinder, Disc, Group, Material,  # noqa: F401
                                          MeshSphere, Rect, Sphere, _dot)
 
+__all__ = ["Box", "Capsule", "Cylinder", "Disc", "Group", "Material", "MeshSphere", "Rect", "Scene", "Sphere",
+           "T_MIN", "raycast"]
+
 
 @dataclass(frozen=True)
 class Scene:
