@@ -36,6 +36,12 @@ class SessionData:
     session: Session
     cameras: dict[str, CameraModel] = field(default_factory=dict)
     backgrounds: dict[str, np.ndarray | None] = field(default_factory=dict)
+    beam_width_deg: float | None = None  # effective beam width estimated by detect_session
+
+    @property
+    def effective_beam_width_deg(self) -> float:
+        """The estimated effective beam width when there is one, else the manifest's."""
+        return self.beam_width_deg or self.session.beam_width_deg or 1.0
 
     def camera(self, cam: str) -> CameraModel:
         if cam not in self.cameras:
@@ -85,17 +91,44 @@ def detect_image_entry(data: SessionData | Session, capture_id: str, cam: str,
     return det.to_entry()
 
 
-def detect_sonar_entry(data: SessionData | Session, capture_id: str, seed_center_m=None) -> dict:
-    """Run the sonar detector on one capture's cloud; return a detections.yaml entry (auto)."""
+def detect_sonar_entry(data: SessionData | Session, capture_id: str, seed_center_m=None, points_sonar_m=None) -> dict:
+    """Run the sonar detector on one capture's cloud; return a detections.yaml entry (auto).
+
+    Uses the session's effective beam width (estimated by :func:`detect_session`, else the
+    manifest's ``sonar.beam_width_deg``) and records it in the entry.
+    """
     from calib_core.detect.sonar import detect_sphere_in_cloud
     from calib_core.io.clouds import load_cloud
 
     data = _as_data(data)
     s = data.session
-    cloud = load_cloud(s.capture(capture_id).cloud_path)
-    det = detect_sphere_in_cloud(cloud.points_m, s.sphere_radius_m, beam_width_deg=s.beam_width_deg,
-                                 seed_center_m=seed_center_m)
-    return det.to_entry()
+    if points_sonar_m is None:
+        points_sonar_m = load_cloud(s.capture(capture_id).cloud_path).points_m
+    beam = data.effective_beam_width_deg
+    det = detect_sphere_in_cloud(points_sonar_m, s.sphere_radius_m, beam_width_deg=beam, seed_center_m=seed_center_m)
+    entry = det.to_entry()
+    entry["beam_width_deg"] = round(float(beam), 4)
+    return entry
+
+
+def estimate_session_beam_width(data: SessionData, clouds: dict[str, np.ndarray], detections: dict) -> float | None:
+    """Effective beam width (deg) from all sphere scans of the session, or None when it cannot
+    be estimated (fewer than 3 spheres found). Operator-validated sonar centres are used as given.
+
+    Why: blooming depends on the angle out to which a strong target still returns, which is
+    the nominal width only approximately (it depends on target strength and threshold).
+    """
+    from calib_core.detect.sonar_beam import estimate_beam_width_deg
+
+    ids = list(clouds)
+    centers = []
+    for cid in ids:
+        e = detections.get(cid, {}).get("sonar")
+        centers.append(np.asarray(e["center"], float) if is_operator_entry(e) and e.get("center") else None)
+    nominal = data.session.beam_width_deg or 1.0
+    est = estimate_beam_width_deg([clouds[c] for c in ids], data.session.sphere_radius_m, nominal_deg=nominal,
+                                  centers_sonar_m=centers)
+    return None if est.reason else float(est.beam_width_deg)
 
 
 def pending(session: Session, detections: dict, captures=None, redetect_auto: bool = True) -> list[tuple[str, str]]:
@@ -112,18 +145,32 @@ def pending(session: Session, detections: dict, captures=None, redetect_auto: bo
 
 
 def detect_session(session_or_data, detections: dict, progress: Progress | None = None,
-                   captures=None, redetect_auto: bool = True) -> dict:
+                   captures=None, redetect_auto: bool = True, estimate_beam_width: bool = True) -> dict:
     """Detect every missing (and, by default, every ``auto``) entry; return merged detections.
 
-    Entries an operator set (accepted / corrected / rejected) are returned unchanged.
+    Entries an operator set (accepted / corrected / rejected) are returned unchanged. With
+    ``estimate_beam_width`` and at least 3 clouds to detect, the sonar's effective beam width is
+    first estimated over the whole session (kept in ``SessionData.beam_width_deg``) and every
+    cloud is fitted with it; otherwise the manifest's ``sonar.beam_width_deg`` is used.
     """
+    from calib_core.io.clouds import load_cloud
+
     data = _as_data(session_or_data)
     todo = pending(data.session, detections, captures, redetect_auto)
+    sonar_ids = [cid for cid, sensor in todo if sensor == "sonar"]
+    clouds = {cid: load_cloud(data.session.capture(cid).cloud_path).points_m for cid in sonar_ids}
+    if estimate_beam_width and data.beam_width_deg is None and len(clouds) >= 3:
+        if progress:
+            progress(0, len(todo), "estimating the sonar's effective beam width")
+        data.beam_width_deg = estimate_session_beam_width(data, clouds, detections)
     auto: dict = {}
     for i, (cid, sensor) in enumerate(todo):
         if progress:
             progress(i, len(todo), f"{cid} {sensor}")
-        entry = detect_sonar_entry(data, cid) if sensor == "sonar" else detect_image_entry(data, cid, sensor)
+        if sensor == "sonar":
+            entry = detect_sonar_entry(data, cid, points_sonar_m=clouds.pop(cid))
+        else:
+            entry = detect_image_entry(data, cid, sensor)
         entry["detected_at"] = now_iso()
         auto.setdefault(cid, {})[sensor] = entry
     if progress:

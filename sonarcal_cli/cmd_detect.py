@@ -16,6 +16,8 @@ def add_parser(sub) -> None:
     p.add_argument("session", help="session folder (holds session.yaml)")
     p.add_argument("--capture", action="append", metavar="ID", help="only this capture (repeatable)")
     p.add_argument("--missing-only", action="store_true", help="keep existing auto entries; detect only missing ones")
+    p.add_argument("--nominal-beam", action="store_true",
+                   help="fit clouds with session.yaml's beam width instead of estimating the effective one")
     p.set_defaults(run=run)
 
 
@@ -33,9 +35,10 @@ def run(args) -> int:
         unknown = set(args.capture) - {c.id for c in session.captures}
         if unknown:
             raise SessionError(session.manifest_path, f"no capture {', '.join(sorted(unknown))}")
+    data = SessionData(session)
     with progress_bar("detecting") as cb:
-        dets = detect_session(SessionData(session), existing, progress=cb, captures=args.capture,
-                              redetect_auto=not args.missing_only)
+        dets = detect_session(data, existing, progress=cb, captures=args.capture,
+                              redetect_auto=not args.missing_only, estimate_beam_width=not args.nominal_beam)
     save_detections(session, dets)
     rows, missing = [], 0
     for cap in session.captures:
@@ -56,5 +59,7 @@ def run(args) -> int:
         if abs(med / session.sphere_diameter_m - 1) > 0.1:
             err_console.print(f"warning: the sonar sees a {med * 1000:.0f} mm sphere but session.yaml says "
                               f"{session.sphere_diameter_m * 1000:.0f} mm: check sphere.diameter", markup=False)
+    if data.beam_width_deg:
+        console.print(f"sonar effective beam width {data.beam_width_deg:.3f} deg (session.yaml: {session.beam_width_deg:g} deg)")
     console.print(f"wrote {session.root / 'detections.yaml'}; {missing} detection(s) not found")
     return 0
