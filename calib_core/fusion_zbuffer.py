@@ -20,7 +20,9 @@ def pixel_index(uv_px: np.ndarray, valid: np.ndarray, width: int, height: int) -
         vi = (uv_px[:, 1] + np.float32(0.5)).astype(np.int32)
     np.clip(ui, 0, width - 1, out=ui)
     np.clip(vi, 0, height - 1, out=vi)
-    pix = vi.astype(np.int64) * width + ui
+    big = width * height >= 2**31 - 1
+    pix = vi.astype(np.int64) * width if big else vi * np.int32(width)  # int32 halves the memory traffic
+    pix += ui
     pix[~valid] = width * height
     return ui, vi, pix
 
