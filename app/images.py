@@ -243,6 +243,8 @@ class ImagePanels:
         return float(u), float(v)
 
     def on_board_click(self, event, cam: str) -> None:
+        if event.client_id in self.wb.review.picking:
+            return  # this click picks the sonar centre in 3D (the scene-wide handler)
         uv = self.pixel_from_ray(cam, event.ray_origin, event.ray_direction)
         if uv is None:
             raise ValueError("the click missed the image")

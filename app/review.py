@@ -47,6 +47,7 @@ class ReviewPanel:
         self.detect.on_click(g(lambda e: self.wb.start_detection(None, redetect_auto=True)))
         self.handle_on.on_update(lambda e: wb.refresher.mark("handle"))
         self.handle = None
+        self.picking: set = set()  # client ids whose next 3D click picks the sonar centre
         self._dragging = False
         self._order: list[str] = []
         for kind in ("detections", "calibration", "selection"):
@@ -120,9 +121,16 @@ class ReviewPanel:
         @guarded(self.wb.server, "Pick failed")
         def on_pick(ev) -> None:
             client.scene.remove_click_callback(on_pick)
-            self.pick_sonar(ev.ray_origin, ev.ray_direction, client_tag(ev))
+            self.picking.discard(client.client_id)
+            entry = self.pick_sonar(ev.ray_origin, ev.ray_direction, client_tag(ev))
+            c = entry["center"]
+            notify(self.wb.server, client, f"{self.wb.state.selected} sonar corrected",
+                   f"{'refit' if entry.get('refit') else 'picked point'} at ({c[0]:.3f}, {c[1]:.3f}, {c[2]:.3f}) m",
+                   color="green", seconds=4)
 
-        client.scene.on_click()(on_pick)
+        if client.client_id not in self.picking:
+            self.picking.add(client.client_id)  # this client's next click in 3D picks (image boards ignore it)
+            client.scene.on_click()(on_pick)
 
     def pick_sonar(self, ray_origin, ray_direction, client: str) -> dict:
         """Pick the cloud point nearest the click ray (first along it) and refit the sonar centre."""

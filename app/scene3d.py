@@ -12,7 +12,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from app.common import pose_wxyz_position
+from app.common import guarded, pose_wxyz_position
 
 STATUS_RGB = {"auto": (240, 200, 0), "accepted": (30, 190, 60), "corrected": (40, 120, 255), "rejected": (220, 40, 40)}
 CAM_RGB = [(255, 120, 0), (0, 170, 170), (150, 60, 220), (120, 120, 0)]
@@ -53,6 +53,7 @@ class Scene3D:
             self.show_rays = gui.add_checkbox("Rays and residuals", True)
             self.show_cams = gui.add_checkbox("Camera frustums", True)
             self.show_gt = gui.add_checkbox("Ground truth (magenta)", True, hint="Shown when the session has ground_truth.yaml")
+            self.frame_btn = gui.add_button("Frame the selected capture", hint="Move your view to the selected capture")
             self.cloud_folder = gui.add_folder("Clouds per capture", expand_by_default=False)
         self.cloud_toggles: dict = {}
         self.cloud_nodes: dict = {}
@@ -64,6 +65,7 @@ class Scene3D:
             h.on_update(lambda _e: wb.refresher.mark("clouds"))
         for h in (self.show_centres, self.show_rays, self.show_cams, self.show_gt):
             h.on_update(lambda _e: wb.refresher.mark("detections", "calibration"))
+        self.frame_btn.on_click(guarded(wb.server)(lambda e: self.home_view(e.client)))
         r = wb.refresher
         r.on("selection", self.refresh_clouds)
         r.on("clouds", self.refresh_clouds)
@@ -96,11 +98,13 @@ class Scene3D:
                 self.cloud_toggles[cap.id] = cb
 
     def home_view(self, client) -> None:
-        """Frame the sonar origin and the selected capture's cloud, seen from behind, aside and above."""
+        """Frame the sonar origin and the selected capture (its sonar centre, else its cloud),
+        seen from behind, aside and above."""
         st = self.wb.state
-        if st.session is None or st.selected is None:
+        if st.session is None or st.selected is None or client is None:
             return
-        target = np.median(st.cloud(st.selected).points_m, axis=0)
+        son = (st.entry(st.selected, "sonar") or {}).get("center")
+        target = np.asarray(son, float) if son is not None else np.median(st.cloud(st.selected).points_m, axis=0)
         dist = max(1.0, float(np.linalg.norm(target)))
         v = target / dist
         side = np.cross(v, (0.0, 0.0, 1.0))
@@ -244,8 +248,10 @@ class Scene3D:
         cal = self.wb.state.T_cam_sonar(cam)
         if cal is not None:
             return camera_pose_in_cloud_frame(*cal)
-        T = np.eye(4)  # uncalibrated: at the sonar origin, offset per camera so they don't overlap
-        T[0, 3] = 0.3 * list(self.wb.state.session.cameras).index(cam)
+        # uncalibrated: beside the sonar, looking along its +x (x forward, y left, z up), image down = -z
+        T = np.eye(4)
+        T[:3, :3] = np.array([[0.0, 0.0, 1.0], [-1.0, 0.0, 0.0], [0.0, -1.0, 0.0]])
+        T[1, 3] = -0.4 * (1 + list(self.wb.state.session.cameras).index(cam))
         return T
 
     def refresh_cameras(self) -> None:

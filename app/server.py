@@ -16,6 +16,7 @@ import viser
 
 from app.common import JobRunner, Refresher, error_text, notify
 from app.state import WorkbenchState
+from calib_core.errors import SessionError
 
 log = logging.getLogger("sonarcal.app")
 
@@ -49,7 +50,6 @@ class Workbench:
         self.server.gui.main_panel.dock_right()  # beside the 3D view, so the view is never covered
         self.refresher = Refresher(on_error=lambda kind, e: notify(self.server, None, f"Display of {kind} failed", error_text(e)))
         self.jobs = JobRunner(on_progress=self._progress, on_error=self._job_error)
-        self._pending_detection: list[str] = []
 
         gui = self.server.gui
         self.title = gui.add_markdown("**sonarcal workbench**: no session open")
@@ -74,7 +74,11 @@ class Workbench:
         self.state.subscribe(self.refresher.mark)
         self.server.on_client_connect(self._on_connect)
         if session_path is not None:
-            self.open_session(session_path)
+            try:
+                self.open_session(session_path)
+            except BaseException:
+                self.stop()
+                raise
 
     # ---- lifecycle -------------------------------------------------------
     @property
@@ -103,8 +107,10 @@ class Workbench:
     # ---- session -----------------------------------------------------------
     def open_session(self, path, check_root: bool = False) -> None:
         """Open a session folder; detect what detections.yaml lacks in the background."""
-        self.state.open(path, check_root=check_root)
-        self._pending_detection = self.state.missing()  # started once the session is on screen
+        if self.jobs.running is not None:
+            raise SessionError(Path(str(path)), f"'{self.jobs.running}' is still running on the open session; "
+                               "open another one when it has finished")
+        self.state.open(path, check_root=check_root)  # detection of what is missing starts once it is on screen
 
     def start_detection(self, captures=None, redetect_auto: bool = False) -> None:
         from calib_core.pipeline import detect_session
@@ -116,7 +122,7 @@ class Workbench:
             with st.lock:
                 data = st.data
             merged = detect_session(data, dets, progress=progress, captures=captures, redetect_auto=redetect_auto)
-            st.merge_automatic(merged)
+            st.merge_automatic(merged, session=session)
 
         self.jobs.start("detection", job)
 
@@ -139,8 +145,8 @@ class Workbench:
 
     def _after_session(self) -> None:
         """Once the new session is on screen, detect what detections.yaml lacks (in the background)."""
-        pending, self._pending_detection = self._pending_detection, []
-        if pending:
+        pending = self.state.missing() if self.state.session is not None else []
+        if pending and self.jobs.running is None:
             self.start_detection(pending, redetect_auto=False)
 
     def _on_connect(self, client: viser.ClientHandle) -> None:

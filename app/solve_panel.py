@@ -81,6 +81,23 @@ def describe(cal: dict) -> str:
     (transposed to fit the panel), range scale, per-capture residuals, outliers, Table I."""
     if not cal:
         return "No calibration yet: press **Solve**."
+    try:
+        return _describe_full(cal)
+    except (KeyError, TypeError, ValueError, IndexError):  # a calibration.json with the contract's keys only
+        return _describe_minimal(cal)
+
+
+def _describe_minimal(cal: dict) -> str:
+    out = ["**Pose T_cam_sonar** (from results/calibration.json; it lacks this tool's uncertainty tables)", ""]
+    for cam, c in cal.get("cameras", {}).items():
+        T = np.asarray(c.get("T_cam_sonar"), float)
+        t_mm = " ".join(f"{v:.1f}" for v in 1000 * T[:3, 3]) if T.shape == (4, 4) else "?"
+        rms = c.get("rms_reprojection_px")
+        out.append(f"- {cam}: t (mm) {t_mm}" + (f"; RMS {rms:.2f} px" if isinstance(rms, (int, float)) else ""))
+    return "\n".join(out)
+
+
+def _describe_full(cal: dict) -> str:
     cols, rows = pose_rows(cal)
     out = ["**Pose T_cam_sonar** (sonar origin in the camera frame)", "",
            md_table(["", *[r[0] for r in rows]], [[c, *[r[i] for r in rows]] for i, c in enumerate(cols) if i > 0]),
@@ -124,7 +141,7 @@ class SolvePanel:
         def job(progress):
             session, dets, _cal = st.snapshot()
             result = calibrate_session(session, dets, self.options(), progress=progress)
-            st.set_calibration(result)
+            st.set_calibration(result, session=session)
             notify(self.wb.server, None, "Solved", "results/calibration.json saved", color="green", seconds=4)
 
         self.wb.jobs.start("solve", job)

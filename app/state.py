@@ -332,10 +332,18 @@ class WorkbenchState:
         self._emit("detections")
         return ch
 
-    def merge_automatic(self, auto: dict) -> None:
-        """Merge fresh automatic detections (operator entries are never overwritten)."""
+    def _same_session(self, session) -> None:
+        if session is not None and session is not self.session:
+            raise SessionError(session.manifest_path, "another session was opened meanwhile; result discarded")
+
+    def merge_automatic(self, auto: dict, session=None) -> None:
+        """Merge fresh automatic detections (operator entries are never overwritten).
+
+        ``session``: the session they were computed for (refused if another one is open now).
+        """
         s = self.require()
         with self._file_lock():
+            self._same_session(session)
             self._sync_from_disk()
             auto_only = {cid: {k: e for k, e in sens.items() if e.get("status", "auto") == "auto"}
                          for cid, sens in auto.items()}
@@ -352,11 +360,15 @@ class WorkbenchState:
             return [c.id for c in s.captures if any(x not in self.detections.get(c.id, {}) for x in self.sensors(c.id))]
 
     # ---- calibration -------------------------------------------------------
-    def set_calibration(self, result: dict) -> Path:
-        """Save exactly ``result`` (the solver's dict) to results/calibration.json."""
+    def set_calibration(self, result: dict, session=None) -> Path:
+        """Save exactly ``result`` (the solver's dict) to results/calibration.json.
+
+        ``session``: the session it was computed for (refused if another one is open now).
+        """
         s = self.require()
         path = calibration_path(s)
         with self.lock:
+            self._same_session(session)
             save_calibration(path, result)
             self.calibration = result
             self.cal_version += 1

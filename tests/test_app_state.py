@@ -219,3 +219,18 @@ def test_upload_refuses_symlinks_bombs_and_oversize(tmp_path):
         safe_unpack_zip(bomb, tmp_path / "u", max_upload_bytes=1000)
     with pytest.raises(SessionError, match="not a zip"):
         safe_unpack_zip(b"PK\x03\x04 garbage", tmp_path / "u")
+
+
+def test_results_for_a_session_no_longer_open_are_discarded(tmp_path):
+    a, b = make_session(tmp_path / "a"), make_session(tmp_path / "b")
+    st = WorkbenchState()
+    st.open(a)
+    session_a, _dets, _cal = st.snapshot()  # what a worker thread took when it started
+    st.open(b)
+    before = (b / "detections.yaml").read_bytes()
+    with pytest.raises(SessionError, match="another session was opened"):
+        st.merge_automatic({"p01": {"cam1": {"status": "auto", "center": [1.0, 1.0]}}}, session=session_a)
+    with pytest.raises(SessionError, match="another session was opened"):
+        st.set_calibration({"format": "sonar-camera-calibration/1", "cameras": {}}, session=session_a)
+    assert (b / "detections.yaml").read_bytes() == before
+    assert not (b / "results").exists() and not (a / "results").exists()
