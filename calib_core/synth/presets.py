@@ -67,7 +67,8 @@ _LIST = [
            sub_rays=19, cloud_format=".pcd", n_backgrounds=2),
     Preset("moved", "one capture's target moved 10-20 cm between the scan and the image", n_captures=8,
            pan_step_deg=0.75, moved=True),
-    Preset("soundspeed", "sound-speed error: cloud ranges scaled by 1.02", n_captures=8, pan_step_deg=0.75,
+    Preset("soundspeed", "sound-speed error: cloud ranges scaled by 1.02; two cameras with a stereo "
+           "transform, which is what makes the scale observable", n_cameras=2, n_captures=8, pan_step_deg=0.75,
            range_scale=1.02),
     Preset("flange", "target captures plus non-target captures of a steel pipe with a square flange "
            "(paper Fig. 5)", n_captures=7, n_flange=2, pan_step_deg=0.5),
