@@ -5,11 +5,17 @@ from __future__ import annotations
 import cv2
 import numpy as np
 import pytest
+import yaml
+
+import sys
+from pathlib import Path
 
 from calib_core.detect.image import background_model, detect_sphere_in_image
 from calib_core.detect.image_cone import cone_from_conic, fit_conic_normalised
 from calib_core.io.images import load_background_frames
-from test_detect_image_scenes import make_background, make_camera, render, sphere_pose_at
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))  # the analytic image maker next to this file
+from test_detect_image_scenes import make_background, make_camera, render, sphere_pose_at  # noqa: E402
 
 R_M = 0.11
 
@@ -39,6 +45,8 @@ def test_ellipse_exact_accurate_and_beats_circle_off_axis(cam_wide, seed):
         errs_e.append(np.linalg.norm(det.center_uv_px - truth))
         assert det.range_m == pytest.approx(dist, rel=0.01)
         assert 0.8 < det.score <= 1.0
+        entry = yaml.safe_load(yaml.safe_dump(det.to_entry()))  # plain YAML types only
+        assert entry["status"] == "auto" and len(entry["center"]) == 2 and len(entry["cov_px2"]) == 4
         hough = detect_sphere_in_image(img, cam_wide, R_M, background=bg, method="hough-circle")
         assert hough.found and hough.method == "hough-circle"
         errs_h.append(np.linalg.norm(hough.center_uv_px - truth))
@@ -95,6 +103,8 @@ def test_two_candidates_and_hint(cam_wide):
     img, t2 = render(cam_wide, first.astype(np.float32), sphere_pose_at(cam_wide, (700, 320), 1.5), R_M, rng)
     det = detect_sphere_in_image(img, cam_wide, R_M, background=bg)
     assert not det.found and det.reason == "two candidates"
+    ranges = sorted(c[2] for c in det.extras["two_candidates"])
+    assert ranges == pytest.approx([1.2, 1.5], rel=0.01)
     det = detect_sphere_in_image(img, cam_wide, R_M)
     assert not det.found and det.reason == "two candidates"
     # an operator's click resolves it

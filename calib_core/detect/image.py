@@ -22,6 +22,7 @@ import time
 from dataclasses import dataclass, field
 from typing import Iterable
 
+import cv2
 import numpy as np
 
 from calib_core.camera import CameraModel
@@ -97,8 +98,7 @@ def _not_found(reason: str, method: str, **extras) -> ImageDetection:
 
 
 def _ellipse_px(sil: np.ndarray) -> tuple:
-    import cv2
-
+    """((cx, cy), (major, minor) full axis lengths, angle_deg) of an outline (OpenCV style)."""
     (cx, cy), (a, b), ang = cv2.fitEllipse(sil.astype(np.float32))
     return ((float(cx), float(cy)), (float(max(a, b)), float(min(a, b))),
             float(ang if a >= b else (ang + 90.0) % 180.0))
@@ -109,8 +109,6 @@ def _mean_radius(sil: np.ndarray) -> float:
 
 
 def _inside(uv: np.ndarray, outline: np.ndarray) -> bool:
-    import cv2
-
     return cv2.pointPolygonTest(outline.astype(np.float32), (float(uv[0]), float(uv[1])), False) > 0
 
 
@@ -126,7 +124,7 @@ def detect_sphere_in_image(image_rgb: np.ndarray, cam: CameraModel, sphere_radiu
                            background: np.ndarray | None = None, method: str = "ellipse-exact",
                            hint_uv_px=None, hint_radius_px: float | None = None,
                            range_limits_m: tuple[float, float] = DEFAULT_RANGE_LIMITS_M,
-                           max_candidates: int = 6, seed: int = 0) -> ImageDetection:
+                           max_candidates: int | None = None, seed: int = 0) -> ImageDetection:
     """Find the sphere in one raw camera image.
 
     Args:
@@ -141,7 +139,8 @@ def detect_sphere_in_image(image_rgb: np.ndarray, cam: CameraModel, sphere_radiu
             near it are preferred and, if none is found, the fit starts from the hint.
         hint_radius_px: optional apparent radius (px) for the hint.
         range_limits_m: plausible camera-to-sphere distances (m); bound the apparent size.
-        max_candidates: most candidates refined at full resolution.
+        max_candidates: most candidates refined at full resolution (default 6 with a
+            background, 10 without: the single-frame detector ranks less reliably).
         seed: seed of the RANSAC sampling (results are deterministic for a seed).
 
     Returns:
@@ -175,7 +174,7 @@ def detect_sphere_in_image(image_rgb: np.ndarray, cam: CameraModel, sphere_radiu
         cands, _ = candidates_from_background(small, background.small(s), s, r_bounds)
     else:
         bg = None
-        cands = candidates_single_frame(small, s, r_bounds)
+        cands = candidates_single_frame(small, s, r_bounds, max_candidates=12)
     if hint_uv_px is not None:
         cands = _hint_candidates(cands, hint_uv_px, hint_radius_px, r_bounds)
     t_region = time.perf_counter()
@@ -183,13 +182,17 @@ def detect_sphere_in_image(image_rgb: np.ndarray, cam: CameraModel, sphere_radiu
         return _not_found("no sphere", method, candidates=0)
 
     rng = np.random.default_rng(seed)
-    # candidates touching the border are tried last (a sphere there is cut anyway)
-    cands = sorted(cands, key=lambda c: c.touches_border)
+    # candidates touching the border are tried last (a sphere there is cut anyway), at most 2
+    if max_candidates is None:
+        max_candidates = 6 if background is not None else 10
+    todo = ([c for c in cands if not c.touches_border][:max_candidates]
+            + [c for c in cands if c.touches_border][:2])
     fits: list[tuple[Candidate, CandidateFit]] = []
-    for c in cands[:max_candidates]:
+    for c in todo:
         ok = [cf for cf in fits if cf[1].ok]
-        if ok and (hint_uv_px is not None or c.strength < 0.4 * max(cf[0].strength for cf in ok)):
-            break  # found, and what is left is too weak to compete
+        if ok and (hint_uv_px is not None or c.strength < 0.12 * max(cf[0].strength for cf in ok)):
+            break  # found, and what is left is far too weak to be a sphere (an open mesh
+            # target has much less contrast than a solid decoy: keep checking those)
         fits.append((c, refine_candidate(img, cam, c, sphere_radius_m, a_range, bg, rng)))
     fitted = [(c, f) for c, f in fits if f.credible]
     good: list[tuple[Candidate, CandidateFit]] = []
@@ -221,8 +224,11 @@ def detect_sphere_in_image(image_rgb: np.ndarray, cam: CameraModel, sphere_radiu
                           rejected=sorted({f.reason for _, f in fits if f.reason}))
     good.sort(key=lambda cf: -cf[1].score)
     if len(good) > 1 and hint_uv_px is None and good[1][1].score >= 0.5 * good[0][1].score:
-        return _not_found("two candidates", method, candidates=[
-            [round(float(v), 1) for v in f.centre_uv_px] for _, f in good[:3]])
+        # both kept (u, v, range_m): a caller with another clue (the sonar's range, a click)
+        # can choose; the detector does not guess
+        return _not_found("two candidates", method, candidates=len(cands), two_candidates=[
+            [round(float(f.centre_uv_px[0]), 2), round(float(f.centre_uv_px[1]), 2), round(f.range_m, 4)]
+            for _, f in good[:3]])
     cand, f = good[0]
     extras = dict(f.extras)
     extras["candidates"] = len(cands)
@@ -230,6 +236,9 @@ def detect_sphere_in_image(image_rgb: np.ndarray, cam: CameraModel, sphere_radiu
     rng_sigma = float(sphere_radius_m * np.cos(f.fit.a_rad) / np.sin(f.fit.a_rad) ** 2
                       * np.sqrt(f.fit.cov_params[2, 2]))
     extras["range_sigma_m"] = round(rng_sigma, 5)
+    # the cone's half-angle is what the camera measures; range_m = radius / sin(angle), so a
+    # wrong diameter in session.yaml shows up as a range that disagrees with the sonar's
+    extras["angular_radius_deg"] = round(float(np.degrees(f.fit.a_rad)), 5)
     det = ImageDetection(found=True, center_uv_px=f.centre_uv_px, cov_uv_px2=f.cov_uv_px2,
                          score=f.score, ellipse_px=_ellipse_px(f.silhouette_px),
                          radius_px=apparent_r, range_m=f.range_m, method=method, extras=extras)

@@ -3,30 +3,33 @@
 Pass 1 casts rays from the coarse centre and takes the outermost strong edge of the
 "differs from the background" signal (the open-mesh texture inside makes edges too; the
 silhouette is the outermost). Pass 2 samples along the normals of the fitted silhouette, in a
-narrow band, and keeps the edge nearest to the model; the cone is refitted robustly, so the
-chain (a thin line attached at the top) and texture edges end up as outliers.
+narrow band, and keeps the outermost edge there (the outline's envelope); the cone is refitted
+robustly, so the chain (a thin line attached at the top) and texture edges end up as outliers.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+import cv2
 import numpy as np
 
 from calib_core.camera import CameraModel
-from calib_core.detect.image_cone import ConeFit, centre_uv_and_cov, fit_cone, silhouette_uv
+from calib_core.detect.image_cone import (ConeFit, centre_uv_and_cov, fit_cone, normalize_near,
+                                          silhouette_uv, silhouette_xy)
 from calib_core.detect.image_edges import (gradient_magnitude, outward_normals, pick_edges,
                                            ray_directions, sample_profiles, smooth_roi)
 from calib_core.detect.image_region import Candidate
 
 SMOOTH_SIGMA_PX = 1.0
-# Neighbouring pass-2 edge samples are ~1.5 px apart while the smoothing and the optics blur
-# correlate their errors over a few px: the residual-based covariance is inflated by this many
-# points per independent error. The residuals hold systematic parts too (texture at the limb,
+# Neighbouring pass-2 edge samples are ~EDGE_SPACING_PX apart while the smoothing and the optics
+# blur correlate their errors over ~CORR_LENGTH_PX: the residual-based covariance is inflated by
+# the number of points per independent error. The residuals hold systematic parts too (texture at the limb,
 # shading), so the result is a total-error estimate; the tests check it against the spread of
 # errors over random synthetic scenes (mean Mahalanobis^2 ~ 2) and that it is not overconfident
 # against pure-noise Monte Carlo.
-CORR_POINTS = 1.5
+EDGE_SPACING_PX = 2.0
+CORR_LENGTH_PX = 2.25
 SYS_FRACTION = 0.2
 
 
@@ -64,10 +67,12 @@ class _Signal:
         self.origin = (float(x0), float(y0))
         self.diff = None
         if background is not None:
-            d = (image[y0:y1, x0:x1].astype(np.float32) - background[y0:y1, x0:x1])
-            d -= np.median(d.reshape(-1, d.shape[2])[::7], axis=0)
-            d = smooth_roi(d, 0, 0, x1 - x0, y1 - y0, SMOOTH_SIGMA_PX)
-            self.diff = np.sqrt((d * d).sum(axis=2))
+            d = cv2.subtract(image[y0:y1, x0:x1].astype(np.float32), background[y0:y1, x0:x1])
+            d -= np.median(d.reshape(-1, d.shape[2])[::7], axis=0).astype(np.float32)
+            # colour distance first, then one smoothing pass (same edge position as smoothing
+            # the colours when the sphere's colour is locally uniform; 3x cheaper)
+            self.diff = smooth_roi(np.sqrt(np.einsum("ijk,ijk->ij", d, d)), 0, 0, d.shape[1], d.shape[0],
+                                   SMOOTH_SIGMA_PX)
         else:
             self.img = smooth_roi(image, x0, y0, x1, y1, SMOOTH_SIGMA_PX)
 
@@ -102,7 +107,9 @@ def refine_candidate(image: np.ndarray, cam: CameraModel, cand: Candidate, spher
     """
     H, W = image.shape[:2]
     R = max(cand.axes_px[0], cand.radius_px)
-    m = int(np.ceil(1.6 * R + 8))
+    # the contrast detector's radius is good to ~30 %, the background blob's to ~10 %
+    lo, hi = (-0.45, 0.8) if cand.source in ("contrast", "hint") else (-0.45, 0.5)
+    m = int(np.ceil((1.1 + hi) * R + 8))
     box = (max(0, int(cand.centre_px[0]) - m), max(0, int(cand.centre_px[1]) - m),
            min(W, int(cand.centre_px[0]) + m + 1), min(H, int(cand.centre_px[1]) + m + 1))
     if box[2] - box[0] < 8 or box[3] - box[1] < 8:
@@ -110,12 +117,10 @@ def refine_candidate(image: np.ndarray, cam: CameraModel, cand: Candidate, spher
     sig = _Signal(image, background, box)
 
     # ---- pass 1: rays from the coarse centre, outermost strong edge
-    k1 = int(np.clip(2 * np.pi * cand.radius_px / 2.0, 48, 360))
+    k1 = int(np.clip(2 * np.pi * cand.radius_px / 2.5, 48, 180))
     dirs = ray_directions(k1)
     r_dir = _polar_radius(cand, dirs)
-    step = max(0.5, R / 80)
-    # the contrast detector's radius is good to ~30 %, the background blob's to ~10 %
-    lo, hi = (-0.45, 0.8) if cand.source in ("contrast", "hint") else (-0.45, 0.5)
+    step = max(0.5, R / 60)
     t = np.arange(lo * R, hi * R + step, step)
     pts = cand.centre_px[None, :] + r_dir[:, None] * dirs
     prof = sig.profiles(pts, dirs, t)
@@ -130,17 +135,19 @@ def refine_candidate(image: np.ndarray, cam: CameraModel, cand: Candidate, spher
     if ok.sum() < 12:
         return CandidateFit(False, "no silhouette edges")
     uv1 = pts[ok] + t1[ok, None] * dirs[ok]
-    fit1 = fit_cone(cam, cam.normalize(uv1), a_range_rad, inlier_px=max(1.5, 0.04 * R), rng=rng)
+    fit1 = fit_cone(cam, normalize_near(cam, uv1), a_range_rad, inlier_px=max(1.5, 0.04 * R), rng=rng,
+                    max_iter=6)
     if fit1 is None or fit1.inliers.sum() < 0.4 * seg_in.sum():
         return CandidateFit(False, "no sphere-shaped silhouette")
 
-    # ---- pass 2: along the normals of the fitted silhouette, narrow band, nearest edge
+    # ---- pass 2: along the normals of the fitted silhouette, narrow band, outermost edge
     sil = silhouette_uv(cam, fit1.w, fit1.a_rad, n=180)
     if not np.isfinite(sil).all():
         return CandidateFit(False, "no sphere-shaped silhouette")
     perim = float(np.linalg.norm(np.diff(np.vstack([sil, sil[:1]]), axis=0), axis=1).sum())
-    k2 = int(np.clip(perim / 1.5, 64, 720))
-    sil = silhouette_uv(cam, fit1.w, fit1.a_rad, n=k2)
+    k2 = int(np.clip(perim / EDGE_SPACING_PX, 64, 360))
+    sil_xy = silhouette_xy(fit1.w, fit1.a_rad, k2)
+    sil = cam.distort(sil_xy)
     ctr = cam.project(fit1.w[None, :])[0]
     nrm = outward_normals(sil, sil.mean(axis=0) if np.isfinite(ctr).all() else ctr)
     half = max(3.0, 3.0 * fit1.sigma_px + 1.5, 0.02 * R)
@@ -154,8 +161,10 @@ def refine_candidate(image: np.ndarray, cam: CameraModel, cand: Candidate, spher
     if ok2.sum() < 12:
         return CandidateFit(False, "no silhouette edges")
     uv2 = sil[ok2] + te[ok2, None] * nrm[ok2]
-    fit = fit_cone(cam, cam.normalize(uv2), a_range_rad, inlier_px=max(1.0, 0.01 * R), rng=rng,
-                   corr_points=CORR_POINTS, start=(fit1.w, fit1.a_rad))
+    # edge points are within a few px of the model outline: Newton from its normalised points
+    xy2 = normalize_near(cam, uv2, sil_xy[ok2], iterations=3)
+    fit = fit_cone(cam, xy2, a_range_rad, inlier_px=max(1.0, 0.01 * R), rng=rng,
+                   corr_points=max(1.0, CORR_LENGTH_PX * k2 / perim), start=(fit1.w, fit1.a_rad))
     if fit is None:
         return CandidateFit(False, "no sphere-shaped silhouette")
 
@@ -172,7 +181,8 @@ def refine_candidate(image: np.ndarray, cam: CameraModel, cand: Candidate, spher
     res = CandidateFit(True, "", fit, centre, cov, sil_f, support, score, contrast,
                        float(sphere_radius_m / np.sin(fit.a_rad)))
     res.extras = {"edge_points": int(ok2.sum()), "inliers": int(fit.inliers.sum()),
-                  "edge_rms_px": round(float(fit.sigma_px), 4), "support": round(support, 4)}
+                  "edge_rms_px": round(float(fit.sigma_px), 4), "support": round(support, 4),
+                  "edge_contrast": round(float(contrast), 2)}
     visible = cam.in_image(sil_f, margin_px=0.05 * R + 8)
     outside_bad = _outside_mismatch(sig, sil_f[visible], outward_normals(sil_f, sil_f.mean(axis=0))[visible], R) \
         if visible.sum() >= 8 else 1.0

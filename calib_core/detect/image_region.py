@@ -113,13 +113,13 @@ def candidates_from_background(small: np.ndarray, bg_small: np.ndarray, s: int,
     Returns:
         (candidates sorted by strength, difference image D (small, float32, grey levels)).
     """
-    diff = small.astype(np.float32) - bg_small.astype(np.float32)
+    diff = cv2.subtract(small.astype(np.float32), bg_small.astype(np.float32))
     # a global brightness change between the background and the capture is not the sphere
-    diff -= np.median(diff[::4, ::4].reshape(-1, diff.shape[2]), axis=0)
-    D = np.sqrt((diff * diff).sum(axis=2))
+    diff -= np.median(diff[::4, ::4].reshape(-1, diff.shape[2]), axis=0).astype(np.float32)
+    D = np.sqrt(np.einsum("ijk,ijk->ij", diff, diff))
     r_lo_s = r_bounds_px[0] / s
     Db = cv2.GaussianBlur(D, (0, 0), max(1.0, 0.12 * r_lo_s))
-    sub = Db[::2, ::2]
+    sub = Db[::3, ::3]
     med = float(np.median(sub))
     mad = float(np.median(np.abs(sub - med))) * 1.4826
     thr = max(med + 6.0 * mad, med + min_contrast * 0.6, min_contrast * 0.6)
@@ -170,32 +170,46 @@ def _shift(a: np.ndarray, dx: int, dy: int) -> np.ndarray:
     return out
 
 
-def _centre_surround(I: np.ndarray, valid: np.ndarray, R: float) -> np.ndarray:
+def _counts(n: int, half: int) -> np.ndarray:
+    """In-image samples of a 1D window [i-half, i+half] at each i (zero outside)."""
+    i = np.arange(n)
+    return (np.minimum(i + half, n - 1) - np.maximum(i - half, 0) + 1).astype(np.float32)
+
+
+def _centre_surround(planes: list[np.ndarray], R: float) -> np.ndarray:
     """Isotropic colour contrast of a disc of radius R (px of this level) at every pixel.
 
     The mean colour of the inscribed box is compared with four boxes just outside the disc
     (left, right, above, below); the response is the SMALLEST of the four colour differences,
     so a disc standing out on all sides responds and the edge or corner of a large object
     (same colour as the inside on one side) does not. Sums skip pixels outside the image.
+    ``planes``: the colour channels as contiguous float32 (h, w) arrays.
     """
+    h, w = planes[0].shape
     hi = max(1, int(round(0.7 * R)))
     ki = max(hi + 1, int(round(1.15 * R)))
     ko = max(ki + 1, int(round(1.5 * R)))
     hx, off = max(1, (ko - ki) // 2), (ki + ko + 1) // 2
-    m_in = _box_sum(I, hi, hi) / np.maximum(_box_sum(valid, hi, hi), 1e-6)[..., None]
-    C = np.full(I.shape[:2], np.inf, np.float32)
-    n_sides = np.zeros(I.shape[:2], np.int32)
+    n_in = np.outer(_counts(h, hi), _counts(w, hi))
+    m_in = [_box_sum(p, hi, hi) / n_in for p in planes]
+    C = np.full((h, w), np.inf, np.float32)
+    n_sides = np.zeros((h, w), np.int32)
     full = (2 * hx + 1) * (2 * hi + 1)
     for (kx, ky) in ((hx, hi), (hi, hx)):
-        S, N = _box_sum(I, kx, ky), _box_sum(valid, kx, ky)
+        N = np.outer(_counts(h, ky), _counts(w, kx))
+        S = [_box_sum(p, kx, ky) for p in planes]
         for sgn in (-1, 1):
             dx, dy = (sgn * off, 0) if kx == hx else (0, sgn * off)
-            Ss, Ns = _shift(S, dx, dy), _shift(N, dx, dy)
+            Ns = _shift(N, dx, dy)
             ok = Ns > 0.4 * full
-            d = m_in - Ss / np.maximum(Ns, 1e-6)[..., None]
-            c = np.sqrt((d * d).sum(axis=2))
-            C = np.where(ok, np.minimum(C, c), C)
+            inv = 1.0 / np.maximum(Ns, 1e-6)
+            c2 = np.zeros((h, w), np.float32)
+            for mi, Si in zip(m_in, S):
+                d = mi - _shift(Si, dx, dy) * inv
+                c2 += d * d
+            np.minimum(C, np.where(ok, c2, np.inf), out=C)
             n_sides += ok
+    C = np.sqrt(C)
     C[(n_sides < 2) | ~np.isfinite(C)] = 0
     return C
 
@@ -215,46 +229,37 @@ def candidates_single_frame(small: np.ndarray, s: int, r_bounds_px: tuple[float,
     if r_hi < r_lo:
         return []
     radii = np.exp(np.arange(np.log(r_lo), np.log(r_hi) + 1e-9, np.log(1.25)))
-    pyramid = [(I0, np.ones((h, w), np.float32))]
-    maps = []
+    pyramid = [[np.ascontiguousarray(I0[..., c]) for c in range(I0.shape[2])]]
+    peaks = []
     for R in radii:
-        # work where the radius is 3-6 px: a pyramid level 2^L smaller
+        # work where the radius is 3-6 px: a pyramid level 2^L smaller; local maxima there
         L = max(0, int(np.floor(np.log2(R / 3.0))))
         while len(pyramid) <= L:
-            pyramid.append(tuple(downscale(a, 2) for a in pyramid[-1]))
-        I, valid = pyramid[L]
-        RL = R / 2 ** L
-        C = _centre_surround(I, valid, RL)
-        if L:
-            C = cv2.resize(C, (w, h), interpolation=cv2.INTER_LINEAR)
-        maps.append(C)
-    stack = np.stack(maps)  # (S, h, w)
-    # scale-space maxima: local maximum in space (window ~ the radius) and over neighbour scales
-    peaks = []
-    for i, R in enumerate(radii):
-        C = stack[i]
-        k = _odd(1.2 * R)
+            pyramid.append([downscale(p, 2) for p in pyramid[-1]])
+        C = _centre_surround(pyramid[L], R / 2 ** L)
+        k = _odd(1.2 * R / 2 ** L)
         dil = cv2.dilate(C, cv2.getStructuringElement(cv2.MORPH_RECT, (k, k)))
-        m = (C >= dil) & (C >= min_contrast)
-        if i > 0:
-            m &= C >= stack[i - 1]
-        if i + 1 < len(radii):
-            m &= C >= stack[i + 1]
-        ys, xs = np.nonzero(m)
-        peaks += [(float(C[y, x]), float(R), int(x), int(y)) for y, x in zip(ys, xs)]
+        ys, xs = np.nonzero((C >= dil) & (C >= min_contrast))
+        f = 2 ** L
+        peaks += [(float(C[y, x]), float(R), (x + 0.5) * f - 0.5, (y + 0.5) * f - 0.5) for y, x in zip(ys, xs)]
     if not peaks:
         return []
     # rank: contrast, with a mild preference for larger radii (the open-mesh holes of a near
     # sphere have more contrast than the sphere as a whole)
     peaks.sort(key=lambda p: -p[0] * p[1] ** 0.25)
     out: list[Candidate] = []
+    later: list[Candidate] = []
     for C, R, x, y in peaks:
         c_full = (np.array([x, y], float) + 0.5) * s - 0.5
-        if any(np.hypot(*(c.centre_px - c_full)) < 0.6 * max(c.radius_px, R * s)
-               and 0.6 < c.radius_px / (R * s) < 1.7 for c in out):
-            continue  # the same object at a neighbouring scale/position
         touches = x - R < 1 or y - R < 1 or x + R > w - 2 or y + R > h - 2
-        out.append(Candidate(c_full, R * s, (R * s, R * s), 0.0, bool(touches), C, "contrast"))
+        cand = Candidate(c_full, R * s, (R * s, R * s), 0.0, bool(touches), C, "contrast")
+        near = [c for c in out if np.hypot(*(c.centre_px - c_full)) < 0.9 * max(c.radius_px, R * s)]
+        if any(0.6 < c.radius_px / (R * s) < 1.7 for c in near):
+            continue  # the same object at a neighbouring scale/position
+        if near:
+            later.append(cand)  # overlaps a stronger one (its texture, or a side response)
+            continue
+        out.append(cand)
         if len(out) >= max_candidates:
             break
-    return out
+    return (out + later)[:max_candidates]
