@@ -35,7 +35,7 @@ class SessionData:
 
     session: Session
     cameras: dict[str, CameraModel] = field(default_factory=dict)
-    backgrounds: dict[str, np.ndarray | None] = field(default_factory=dict)
+    backgrounds: dict[str, object | None] = field(default_factory=dict)  # PreparedBackground per camera
     beam_width_deg: float | None = None  # effective beam width estimated by detect_session
 
     @property
@@ -48,10 +48,11 @@ class SessionData:
             self.cameras[cam] = self.session.camera_model(cam)
         return self.cameras[cam]
 
-    def background(self, cam: str) -> np.ndarray | None:
-        """Background model of a camera (median of its frames), None when it has none."""
+    def background(self, cam: str):
+        """Background model of a camera (median of its frames, prepared for repeated detections),
+        None when it has none."""
         if cam not in self.backgrounds:
-            from calib_core.detect.image import background_model
+            from calib_core.detect.image import background_model, prepare_background
             from calib_core.io.images import load_background_frames
 
             spec = self.session.cameras[cam]
@@ -61,7 +62,7 @@ class SessionData:
                 start, end = spec.background_window_s
                 frames = load_background_frames(spec.background_path, start_s=start, end_s=end)
                 _check_image_size(spec.background_path, frames[0], self.camera(cam))
-                self.backgrounds[cam] = background_model(frames, how="median")
+                self.backgrounds[cam] = prepare_background(background_model(frames, how="median"))
         return self.backgrounds[cam]
 
 
