@@ -174,9 +174,53 @@ def detect_session(session_or_data, detections: dict, progress: Progress | None 
             entry = detect_image_entry(data, cid, sensor)
         entry["detected_at"] = now_iso()
         auto.setdefault(cid, {})[sensor] = entry
+    merged = merge_auto(detections, auto)
+    for cam in data.session.cameras:
+        for cid, entry in _resolve_ambiguous_images(data, merged, cam, only=set(auto)).items():
+            auto[cid][cam] = entry
     if progress:
         progress(len(todo), len(todo), "done")
     return merge_auto(detections, auto)
+
+
+def _resolve_ambiguous_images(data: SessionData, detections: dict, cam: str, only: set) -> dict:
+    """Second look at camera ``cam``'s images (among captures in ``only``) guided by the sonar.
+
+    "two candidates" images are refitted at the candidate the sonar's centres single out, and
+    images whose detection does not fit the rough rig registration are refitted where the
+    registration says the sphere must be (see :mod:`calib_core.disambiguate`). A refit is kept
+    only when the detector finds the sphere there.
+    """
+    from calib_core.disambiguate import resolve_candidates
+
+    centers, cands = {}, {}
+    for cid, d in detections.items():
+        son, img = d.get("sonar"), d.get(cam)
+        if not son or son.get("status") == "rejected" or son.get("center") is None or not img:
+            continue
+        if img.get("center") is not None and img.get("range_m") and img.get("status") != "rejected":
+            cands[cid] = np.array([[*img["center"], img["range_m"]]], float)
+        elif img.get("two_candidates") and cid in only and img.get("status") == "auto":
+            cands[cid] = np.asarray(img["two_candidates"], float).reshape(-1, 3)
+        else:
+            continue
+        centers[cid] = np.asarray(son["center"], float)
+    model = data.camera(cam)
+    res = resolve_candidates(model, centers, cands)
+    looks = {cid: (tuple(cands[cid][k]), "sonar consistency: the other candidates do not fit one rig transform")
+             for cid, k in res.chosen.items()}
+    for cid, uvr in res.predicted_uvr.items():
+        if cid in only and detections[cid][cam].get("status") == "auto":
+            looks[cid] = (uvr, "sonar-guided second look: the first detection did not fit the rig transform")
+    out = {}
+    for cid, ((u, v, rng_m), why) in looks.items():
+        radius_px = model.fx * data.session.sphere_radius_m / max(rng_m, 1e-6)
+        entry = detect_image_entry(data, cid, cam, hint_uv_px=(u, v), hint_radius_px=radius_px)
+        if entry.get("center") is not None and np.hypot(entry["center"][0] - u, entry["center"][1] - v) < 0.5 * radius_px:
+            entry["resolved_by"] = why
+            entry["detected_at"] = now_iso()
+            out[cid] = entry
+    return out
 
 
 def refit_image(session_or_data, capture_id: str, cam: str, hint_uv_px, hint_radius_px=None) -> dict:

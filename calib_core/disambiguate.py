@@ -1,0 +1,109 @@
+"""Choose between image candidates ("two candidates") with the sonar's sphere centres.
+
+An image alone cannot tell the target from another round thing of another size (a near
+small ball looks like a far big one). But each candidate, read with the target's known
+radius, is a 3D point in the camera frame (direction from the pixel, range r / sin(a)),
+and the true candidates of all captures must match the sonar's sphere centres through one
+rigid transform. A RANSAC 3D-3D registration over the candidates finds that transform and,
+with it, which candidate of each ambiguous capture is the target.
+
+Approximation: the range from the apparent size is good to a few per cent, so the gate is
+loose (``tol = 0.05 * range + 0.03 m``); it only has to separate candidates, not calibrate.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from calib_core.camera import CameraModel
+
+
+def candidate_points_cam_m(cam: CameraModel, uvr: np.ndarray) -> np.ndarray:
+    """(K,3) camera-frame centres of candidates given as rows (u_px, v_px, range_m)."""
+    uvr = np.asarray(uvr, float).reshape(-1, 3)
+    return cam.rays(uvr[:, :2]) * uvr[:, 2:3]
+
+
+def _rigid_fit(X_sonar_m: np.ndarray, P_cam_m: np.ndarray) -> np.ndarray | None:
+    """T_cam_sonar (4x4) minimising |R X + t - P| over >= 3 point pairs (Kabsch)."""
+    cx, cp = X_sonar_m.mean(axis=0), P_cam_m.mean(axis=0)
+    if np.linalg.matrix_rank(X_sonar_m - cx, tol=1e-3) < 2:
+        return None
+    R, _ = Rotation.align_vectors(P_cam_m - cp, X_sonar_m - cx)
+    T = np.eye(4)
+    T[:3, :3] = R.as_matrix()
+    T[:3, 3] = cp - T[:3, :3] @ cx
+    return T
+
+
+@dataclass
+class Resolution:
+    """What the registration decided.
+
+    chosen: {capture_id: index of the target among its candidates} (ambiguous captures only).
+    predicted_uvr: {capture_id: (u_px, v_px, range_m)} where the target must be for captures
+        whose candidates all miss the registration or stay undecided: a place to look again.
+    T_cam_sonar: the rough registration (4x4), or None.
+    """
+
+    chosen: dict = field(default_factory=dict)
+    predicted_uvr: dict = field(default_factory=dict)
+    T_cam_sonar: np.ndarray | None = None
+
+
+def resolve_candidates(cam: CameraModel, centers_sonar_m: dict[str, np.ndarray],
+                       candidates: dict[str, np.ndarray], iterations: int = 400,
+                       seed: int = 0) -> Resolution:
+    """Pick the target among each capture's image candidates.
+
+    Args:
+        cam: the camera's intrinsics.
+        centers_sonar_m: {capture_id: (3,) sphere centre in the sonar frame, m}.
+        candidates: {capture_id: (K,3) rows (u_px, v_px, range_m)}; K = 1 for a capture whose
+            image detection was unambiguous.
+        iterations: RANSAC hypotheses (3 captures, one candidate each).
+
+    Returns:
+        a :class:`Resolution`: the ambiguous captures (K > 1) that the registration decides
+        clearly, and predicted places for those it cannot (an operator decides if a second
+        look there finds nothing).
+    """
+    ids = [c for c in candidates if c in centers_sonar_m and len(candidates[c])]
+    if len(ids) < 4 or all(len(candidates[c]) == 1 for c in ids):
+        return Resolution()
+    X = {c: np.asarray(centers_sonar_m[c], float) for c in ids}
+    P = {c: candidate_points_cam_m(cam, candidates[c]) for c in ids}
+    tol = {c: 0.05 * np.asarray(candidates[c], float)[:, 2] + 0.03 for c in ids}
+    rng = np.random.default_rng(seed)
+    best_T, best_key = None, (-1, np.inf)
+    for _ in range(iterations):
+        pick = rng.choice(len(ids), 3, replace=False)
+        sel = [ids[i] for i in pick]
+        choice = [rng.integers(len(P[c])) for c in sel]
+        T = _rigid_fit(np.array([X[c] for c in sel]), np.array([P[c][k] for c, k in zip(sel, choice)]))
+        if T is None:
+            continue
+        n_in, cost = 0, 0.0
+        for c in ids:
+            d = np.linalg.norm(P[c] - (T[:3, :3] @ X[c] + T[:3, 3]), axis=1) / tol[c]
+            n_in += bool(d.min() <= 1.0)
+            cost += min(d.min(), 1.0)
+        if (n_in, -cost) > (best_key[0], -best_key[1]):
+            best_T, best_key = T, (n_in, cost)
+    if best_T is None or best_key[0] < 4:
+        return Resolution()
+    out = Resolution(T_cam_sonar=best_T)
+    for c in ids:
+        X_cam = best_T[:3, :3] @ X[c] + best_T[:3, 3]
+        d = np.linalg.norm(P[c] - X_cam, axis=1) / tol[c]
+        order = np.argsort(d)
+        if len(P[c]) >= 2 and d[order[0]] <= 1.0 and d[order[1]] > 2.0:  # clearly one, clearly not the other
+            out.chosen[c] = int(order[0])
+        elif d[order[0]] > 1.0 or len(P[c]) >= 2:
+            uv = cam.project(X_cam[None])[0]
+            if np.isfinite(uv).all() and cam.in_image(uv[None])[0]:
+                out.predicted_uvr[c] = (float(uv[0]), float(uv[1]), float(np.linalg.norm(X_cam)))
+    return out
