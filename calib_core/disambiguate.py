@@ -56,7 +56,7 @@ class Resolution:
 
 def resolve_candidates(cam: CameraModel, centers_sonar_m: dict[str, np.ndarray],
                        candidates: dict[str, np.ndarray], iterations: int = 400,
-                       seed: int = 0) -> Resolution:
+                       seed: int = 0, predict_for=()) -> Resolution:
     """Pick the target among each capture's image candidates.
 
     Args:
@@ -65,6 +65,8 @@ def resolve_candidates(cam: CameraModel, centers_sonar_m: dict[str, np.ndarray],
         candidates: {capture_id: (K,3) rows (u_px, v_px, range_m)}; K = 1 for a capture whose
             image detection was unambiguous.
         iterations: RANSAC hypotheses (3 captures, one candidate each).
+        predict_for: capture ids (with a sonar centre) whose image gave no candidate at all:
+            the registration predicts where to look again.
 
     Returns:
         a :class:`Resolution`: the ambiguous captures (K > 1) that the registration decides
@@ -72,7 +74,7 @@ def resolve_candidates(cam: CameraModel, centers_sonar_m: dict[str, np.ndarray],
         look there finds nothing).
     """
     ids = [c for c in candidates if c in centers_sonar_m and len(candidates[c])]
-    if len(ids) < 4 or all(len(candidates[c]) == 1 for c in ids):
+    if len(ids) < 4:
         return Resolution()
     X = {c: np.asarray(centers_sonar_m[c], float) for c in ids}
     P = {c: candidate_points_cam_m(cam, candidates[c]) for c in ids}
@@ -105,5 +107,11 @@ def resolve_candidates(cam: CameraModel, centers_sonar_m: dict[str, np.ndarray],
         elif d[order[0]] > 1.0 or len(P[c]) >= 2:
             uv = cam.project(X_cam[None])[0]
             if np.isfinite(uv).all() and cam.in_image(uv[None])[0]:
+                out.predicted_uvr[c] = (float(uv[0]), float(uv[1]), float(np.linalg.norm(X_cam)))
+    for c in predict_for:
+        if c in centers_sonar_m and c not in candidates:
+            X_cam = best_T[:3, :3] @ np.asarray(centers_sonar_m[c], float) + best_T[:3, 3]
+            uv = cam.project(X_cam[None])[0]
+            if X_cam[2] > 0 and np.isfinite(uv).all() and cam.in_image(uv[None])[0]:
                 out.predicted_uvr[c] = (float(uv[0]), float(uv[1]), float(np.linalg.norm(X_cam)))
     return out

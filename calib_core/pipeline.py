@@ -193,7 +193,7 @@ def _resolve_ambiguous_images(data: SessionData, detections: dict, cam: str, onl
     """
     from calib_core.disambiguate import resolve_candidates
 
-    centers, cands = {}, {}
+    centers, cands, missing = {}, {}, []
     for cid, d in detections.items():
         son, img = d.get("sonar"), d.get(cam)
         if not son or son.get("status") == "rejected" or son.get("center") is None or not img:
@@ -202,16 +202,21 @@ def _resolve_ambiguous_images(data: SessionData, detections: dict, cam: str, onl
             cands[cid] = np.array([[*img["center"], img["range_m"]]], float)
         elif img.get("two_candidates") and cid in only and img.get("status") == "auto":
             cands[cid] = np.asarray(img["two_candidates"], float).reshape(-1, 3)
+        elif img.get("center") is None and cid in only and img.get("status") == "auto":
+            missing.append(cid)
         else:
             continue
         centers[cid] = np.asarray(son["center"], float)
+    if not any(cid in only for cid in cands) and not missing:
+        return {}
     model = data.camera(cam)
-    res = resolve_candidates(model, centers, cands)
+    res = resolve_candidates(model, centers, cands, predict_for=missing)
     looks = {cid: (tuple(cands[cid][k]), "sonar consistency: the other candidates do not fit one rig transform")
              for cid, k in res.chosen.items()}
     for cid, uvr in res.predicted_uvr.items():
         if cid in only and detections[cid][cam].get("status") == "auto":
-            looks[cid] = (uvr, "sonar-guided second look: the first detection did not fit the rig transform")
+            first = "found nothing" if cid in missing else "did not fit the rig transform"
+            looks[cid] = (uvr, f"sonar-guided second look: the first detection {first}")
     out = {}
     for cid, ((u, v, rng_m), why) in looks.items():
         radius_px = model.fx * data.session.sphere_radius_m / max(rng_m, 1e-6)

@@ -74,3 +74,13 @@ def test_predicts_where_a_wrong_single_detection_should_have_been():
     res = resolve_candidates(CAM, centers, cands)
     assert wrong in res.predicted_uvr and wrong not in res.chosen
     assert np.hypot(*(np.array(res.predicted_uvr[wrong][:2]) - true_uv)) < 40  # rough, but a place to look
+
+
+def test_predicts_where_to_look_for_an_image_that_found_nothing():
+    rng = np.random.default_rng(9)
+    centers, cands, _ = _scene(rng, n=8, n_ambiguous=0, range_noise=0.01)
+    lost = "p03"
+    true_uv = cands.pop(lost)[0, :2]
+    res = resolve_candidates(CAM, centers, cands, predict_for=[lost])
+    assert np.hypot(*(np.array(res.predicted_uvr[lost][:2]) - true_uv)) < 40
+    assert set(res.predicted_uvr) == {lost}  # the good single detections are left alone
