@@ -121,6 +121,7 @@ class WorkbenchState:
         with self.lock:
             self.session, self.detections, self.calibration, self.ground_truth = session, dets, cal, gt
             self.data = SessionData(session)
+            self.data.adopt_beam_width(dets)
             self.cal_version += 1
             self.selected = session.captures[0].id
             self.undo_stack.clear()

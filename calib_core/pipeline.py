@@ -43,6 +43,15 @@ class SessionData:
         """The estimated effective beam width when there is one, else the manifest's."""
         return self.beam_width_deg or self.session.beam_width_deg or 1.0
 
+    def adopt_beam_width(self, detections: dict) -> None:
+        """Take the effective beam width an earlier detection run recorded in the sonar entries
+        (their median), so refits after a reload use the same width as the first detection."""
+        if self.beam_width_deg is None:
+            widths = [e["beam_width_deg"] for d in detections.values() for s, e in d.items()
+                      if s == "sonar" and isinstance(e.get("beam_width_deg"), (int, float))]
+            if widths:
+                self.beam_width_deg = float(np.median(widths))
+
     def camera(self, cam: str) -> CameraModel:
         if cam not in self.cameras:
             self.cameras[cam] = self.session.camera_model(cam)
@@ -164,6 +173,7 @@ def detect_session(session_or_data, detections: dict, progress: Progress | None 
         if progress:
             progress(0, len(todo), "estimating the sonar's effective beam width")
         data.beam_width_deg = estimate_session_beam_width(data, clouds, detections)
+    data.adopt_beam_width(detections)
     auto: dict = {}
     for i, (cid, sensor) in enumerate(todo):
         if progress:

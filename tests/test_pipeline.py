@@ -101,3 +101,13 @@ def test_cli_detect_writes_detections_and_keeps_operator_entries(tmp_path, capsy
     assert load_detections(session)[cid]["sonar"] == accepted
     assert main(["detect", str(root), "--capture", "nope"]) == 2
     assert "no capture nope" in capsys.readouterr().err
+
+
+def test_refits_after_a_reload_use_the_beam_width_of_the_first_detection(quick):
+    session, _, dets = quick
+    widths = {e["beam_width_deg"] for d in dets.values() for s, e in d.items() if s == "sonar"}
+    assert len(widths) == 1
+    data = SessionData(session)
+    data.adopt_beam_width(dets)
+    assert data.effective_beam_width_deg == widths.pop()
+    assert SessionData(session).effective_beam_width_deg == session.beam_width_deg
