@@ -111,3 +111,14 @@ def test_refits_after_a_reload_use_the_beam_width_of_the_first_detection(quick):
     data.adopt_beam_width(dets)
     assert data.effective_beam_width_deg == widths.pop()
     assert SessionData(session).effective_beam_width_deg == session.beam_width_deg
+
+
+def test_stated_sonar_covariance_matches_the_true_errors(quick):
+    session, gt, dets = quick
+    m2 = []
+    for cap in session.captures:
+        e = dets[cap.id]["sonar"]
+        err = np.asarray(e["center"]) - gt["captures"][cap.id]["center_sonar_m"]
+        m2.append(err @ np.linalg.solve(np.asarray(e["cov_m2"]).reshape(3, 3), err) / 3)
+    # ~1 when honest; the fit's range-noise covariance alone gave ~7 (errors ~2.7x the stated sigma)
+    assert 0.15 < np.mean(m2) < 2.5, np.mean(m2)

@@ -24,8 +24,12 @@ around it, diameter). More than one acceptable candidate gives "two candidates";
 another size is reported, not used. The effective beam width can be estimated per session
 with :func:`calib_core.detect.sonar_beam.estimate_beam_width_deg`.
 
-Approximations: circular uniform beam cone (no beam pattern, side lobes or multipath); the
-covariance reflects range noise only (not a wrong beam width or radius).
+Approximations: circular uniform beam cone (no beam pattern, side lobes or multipath). The
+covariance is the fit's (range noise) plus an isotropic model-error floor of
+``MODEL_FLOOR_BEAM_FRACTION`` of the beam footprint (range x beam width), set so that the centre
+errors on synthetic sessions have a mean squared Mahalanobis distance of ~1 per axis (it was ~7
+without the floor: `benchmarks/bench_detection_sonar.py`). Real beams will need more, which the
+solver's chi-square inflation then supplies.
 """
 
 from __future__ import annotations
@@ -65,6 +69,7 @@ MAX_RING_SECTORS = 5  # of 16 around the disc: a chain or a stand, not a seabed 
 # unless an operator picked it (then fitted with the diameter it shows, with a warning)
 DIAMETER_TOL = 0.15
 DIAMETER_WARN = 0.06  # relative: above it a found sphere carries a warning
+MODEL_FLOOR_BEAM_FRACTION = 0.02  # 1-sigma model error per axis, as a fraction of range x beam width
 
 
 @dataclass
@@ -369,7 +374,7 @@ def _finish(P, W, base, j: _Judged, r, h, method, n_all, info, extras) -> SonarD
     return SonarDetection(
         found=True,
         center_sonar_m=np.asarray(fit.center_m, float),
-        cov_sonar_m2=np.asarray(fit.cov_center_m2, float),
+        cov_sonar_m2=np.asarray(fit.cov_center_m2, float) + (MODEL_FLOOR_BEAM_FRACTION * cn * 2 * h) ** 2 * np.eye(3),
         n_inliers=int(fit.inliers.sum()),
         rms_m=float(fit.rms_m),
         score=float(j.score),
