@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from calib_core.geometry import pose_error
+from calib_core.geometry import invert_T, pose_error, rotvec_from_T
 from calib_core.pipeline import SessionData, detect_session
 from calib_core.session import load_session
 from calib_core.solve.calibrate import calibrate_session
@@ -36,20 +36,26 @@ def run_one(folder: Path, preset: str, seed: int, scale: float) -> list[list]:
     moved = sorted(c for c, v in gt["captures"].items() if (v.get("moved_m") or 0) > 0.01)
     try:
         t0 = time.perf_counter()
-        res = calibrate_session(session, dets, {"estimate_scale": len(session.cameras) == 2})
+        # detections were just made: do not let calibrate re-detect the auto entries
+        res = calibrate_session(session, dets, {"estimate_scale": len(session.cameras) == 2, "detect": False})
         t_cal = time.perf_counter() - t0
     except Exception as e:  # report, do not stop the sweep
         return [[preset, seed, "-", f"FAILED: {str(e)[:90]}"]]
     rows = []
     for cam, c in res["cameras"].items():
-        rot, t = pose_error(np.asarray(c["T_cam_sonar"]), gt["cameras"][cam]["T_cam_sonar"])
+        T, T_true = np.asarray(c["T_cam_sonar"]), gt["cameras"][cam]["T_cam_sonar"]
+        rot, t = pose_error(T, T_true)
+        # the reported covariance is on (rotation vector, translation): squared Mahalanobis
+        # distance of the true error per degree of freedom, ~1 when the uncertainty is honest
+        e = np.r_[rotvec_from_T(T @ invert_T(T_true)), T[:3, 3] - T_true[:3, 3]]
+        m2 = float(e @ np.linalg.solve(np.asarray(c["covariance"], float)[:6, :6], e) / 6)
         flagged = sorted(o.get("capture", "?") if isinstance(o, dict) else str(o) for o in c.get("outliers", []))
         scale = res.get("range_scale", {})
         rows.append([preset, seed, cam, f"{np.degrees(rot):.3f}", f"{t * 1000:.1f}",
                      f"{len(c['captures_used'])}/{len(targets)}", missed, ",".join(flagged) or "-",
                      ",".join(moved) or "-",
                      f"{scale.get('value', 1.0):.4f}/{gt.get('range_scale', 1.0):.3f}" if scale.get("estimated") else "-",
-                     f"{t_det:.1f}", f"{t_cal:.2f}"])
+                     f"{m2:.2f}", f"{t_det:.1f}", f"{t_cal:.2f}"])
     return rows
 
 
@@ -60,7 +66,7 @@ def main() -> None:
     ap.add_argument("--presets", nargs="+", default=[p for p in PRESETS if p != "wrongdiam"])
     args = ap.parse_args()
     head = ["preset", "seed", "cam", "rot deg", "t mm", "used", "not found", "flagged", "truly moved",
-            "scale est/true", "detect s", "solve s"]
+            "scale est/true", "mahal2/dof", "detect s", "solve s"]
     print(" | ".join(head))
     errs = []
     with tempfile.TemporaryDirectory() as tmp:
@@ -69,12 +75,13 @@ def main() -> None:
                 for row in run_one(Path(tmp), preset, seed, args.scale):
                     print(" | ".join(str(v) for v in row), flush=True)
                     if len(row) > 4:
-                        errs.append((float(row[3]), float(row[4])))
+                        errs.append((float(row[3]), float(row[4]), float(row[10])))
     if errs:
         e = np.array(errs)
         print(f"\nover {len(e)} camera solves: rotation RMS {np.sqrt(np.mean(e[:, 0] ** 2)):.3f} deg "
               f"(max {e[:, 0].max():.3f}), translation RMS {np.sqrt(np.mean(e[:, 1] ** 2)):.1f} mm "
-              f"(max {e[:, 1].max():.1f})")
+              f"(max {e[:, 1].max():.1f}); pose error / stated covariance: mean squared Mahalanobis "
+              f"per dof {e[:, 2].mean():.2f} (1 = honest)")
     print("wrongdiam is left out: with a wrong diameter the sonar refuses the sphere and names the "
           "diameter it sees (by design; see sonarcal detect)")
 
