@@ -79,4 +79,5 @@ def scale_line(cal: dict) -> str:
     if s.get("estimated"):
         return (f"range scale {s['value']:.5f} ± {s['sigma']:.5f} (1-sigma; sound speed in the cloud is "
                 f"{100 * (s['value'] - 1):+.2f} % off): divide cloud points by it before applying T_cam_sonar")
-    return f"range scale fixed at 1 ({s.get('note') or 'not estimated'})"
+    note = s.get("note") or "not estimated"
+    return note if "fixed at 1" in note else f"range scale fixed at 1 ({note})"
