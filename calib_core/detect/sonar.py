@@ -46,7 +46,7 @@ from calib_core.detect.sonar_search import (
     disc_coverage,
     find_candidates,
     crop_ball,
-    ring_sectors,
+    polar_about,
     start_center,
 )
 from calib_core.detect.types import SonarDetection
@@ -63,7 +63,7 @@ MIN_INLIERS = 12
 MIN_COVERAGE = 0.7
 MIN_COVERAGE_SEEDED = 0.4
 MIN_PURITY = 0.6
-MAX_RING_SECTORS = 5  # of 16 around the disc: a chain or a stand, not a seabed or a wall
+MAX_RING_SECTORS = 8  # of 16 around the outline merge with a surface: a cap of it, not a ball resting on it
 # relative: a larger difference between the diameter the cone model sees and session.yaml's
 # makes it "a sphere of another size" (a decoy, or a wrong diameter): reported, never used,
 # unless an operator picked it (then fitted with the diameter it shows, with a warning)
@@ -102,6 +102,26 @@ def _max_sigma(radius: float, noise_m: float) -> float:
     return max(MAX_SIGMA_REL * radius, 2.0 * noise_m + 0.002 if np.isfinite(noise_m) else 0.0)
 
 
+def _merged_sectors(R, D, c, radius: float, alpha: float, h: float, noise_m: float) -> int:
+    """In how many of 16 directions around the sphere's outline the surface just outside it
+    continues at the limb's range (a cap of a larger surface: a boulder, a dome, a bump).
+    A real sphere's outline is a depth step: what lies behind it (a chair's back, a wall, a
+    person) is farther, what hides part of it (a stick, a hand) nearer; only the spot where
+    it rests on a seat, a table or the seabed continues at the limb's range."""
+    cn = float(np.linalg.norm(c))
+    limb = float(np.sqrt(max(cn * cn - radius * radius, 0.0)))
+    tol = max(0.3 * radius, 4.0 * noise_m if np.isfinite(noise_m) else 0.0)
+    theta, ang = polar_about(D, c / cn)
+    sel = (theta > alpha * 1.05) & (theta <= alpha * 1.05 + max(0.5 * alpha, 2 * h))
+    sector = (ang[sel] / (2 * np.pi) * 16).astype(int) % 16
+    near = np.abs(R[sel] - limb) < tol
+    n_all = np.bincount(sector, minlength=16)
+    n_near = np.bincount(sector[near], minlength=16)
+    # a sector merges when most of its returns continue the limb (flying pixels between a
+    # ball's edge and the background are a minority)
+    return int(((n_near >= 2) & (n_near >= 0.5 * n_all)).sum())
+
+
 def _assess(X, R, D, fit: FitResult, radius: float, h: float, seeded: bool, noise_m: float):
     """(coverage, purity, problem) of a cone-model fit of a sphere of ``radius`` to the crop;
     ``noise_m``: the sonar's range noise measured on the planes of the cloud (or NaN)."""
@@ -113,18 +133,20 @@ def _assess(X, R, D, fit: FitResult, radius: float, h: float, seeded: bool, nois
     inl = fit.inliers
     n_in = int(inl.sum())
     purity = float((inl & in_disc).sum() / max(int(in_disc.sum()), 1))
-    coverage = disc_coverage(D[inl], c / cn, alpha)
+    # of the parts of the disc that any beam sampled (a sparse scan samples a few rings),
+    # the share that returned from the sphere
+    sampled = disc_coverage(D[in_disc], c / cn, alpha)
+    coverage = disc_coverage(D[inl], c / cn, alpha) / max(sampled, 1.0 / 12)
     sig = fit.sigma_m
     rough = _roughness_m(R[in_disc], D[in_disc])
-    near_range = (R > cn - 1.5 * radius) & (R < cn + radius)
-    ring = ring_sectors(D[near_range], c / cn, alpha * 1.05, max(0.5 * alpha, 2 * h))
+    ring = _merged_sectors(R, D, c, radius, alpha, h, noise_m)
     problem = ""
     if n_in < MIN_INLIERS:
-        problem = f"too few points on the sphere ({n_in})"
-    elif sig > MAX_SIGMA_REL * radius:
+        problem = f"too few returns on the sphere ({n_in})"
+    elif sig > _max_sigma(radius, noise_m):
         problem = f"returns too scattered for a sphere (sigma {sig * 1000:.0f} mm)"
-    elif np.isfinite(noise_m) and sig > 2.0 * noise_m + 0.002:
-        problem = (f"not sphere-shaped (fit sigma {sig * 1000:.0f} mm, sonar noise "
+    elif np.isfinite(noise_m) and sig > 2.0 * noise_m + 0.002 and sig > MAX_SIGMA_REL * radius / 3:
+        problem = (f"not sphere-shaped (fit sigma {sig * 1000:.0f} mm, sensor noise "
                    f"{noise_m * 1000:.0f} mm)")
     elif not sig <= 2.0 * rough + 0.002:  # the surface is smooth but not this sphere
         problem = (f"not sphere-shaped (fit sigma {sig * 1000:.0f} mm, surface noise "
@@ -134,8 +156,63 @@ def _assess(X, R, D, fit: FitResult, radius: float, h: float, seeded: bool, nois
     elif coverage < (MIN_COVERAGE_SEEDED if seeded else MIN_COVERAGE):
         problem = f"sphere only partly seen (coverage {coverage:.0%})"
     elif ring > MAX_RING_SECTORS:  # (an operator's pick overrides this one, see _judge)
-        problem = f"{RING_PROBLEM} (returns around it in {ring}/16 sectors)"
+        problem = f"{RING_PROBLEM} (merges with it in {ring}/16 directions around its outline)"
     return coverage, purity, problem
+
+
+@dataclass
+class _FirstLook:
+    """The cheap first fit on at most QUICK_POINTS points of a crop, and (computed once, on
+    demand) a free-radius fit of the same points: is it a sphere of another size?"""
+
+    Xq: np.ndarray
+    quick: FitResult
+    r: float
+    h: float
+    noise_m: float
+    _free: FitResult | None = None
+
+    def other_size_start(self):
+        """(centre, radius) of a sphere of another size seen in the first-look points, or None."""
+        if self._free is None:
+            self._free = fit_sphere(self.Xq, self.quick.center_m, self.r, model="cone",
+                                    free_radius=True, half_angle_rad=self.h, sigma0_m=0.01,
+                                    n_rounds=2)
+        f, r = self._free, self.r
+        if f.ok and f.sigma_m <= _max_sigma(f.radius_m, self.noise_m) and 0.6 * r <= f.radius_m <= 1.6 * r:
+            return f.center_m, f.radius_m
+        return None
+
+
+def _crop(P: np.ndarray, cand: Candidate, r: float, h: float):
+    """(start centre, crop indices into P, judged subset of the crop (indices into it))."""
+    cn0 = float(np.linalg.norm(cand.center_m))
+    start = start_center(cand, r)
+    idx = crop_ball(P, start, 1.6 * r + cn0 * np.tan(h) + 0.05)
+    if len(idx) > JUDGE_POINTS:  # judged on a random subset; _finish refits on them all
+        idx_j = np.sort(np.random.default_rng(0).choice(len(idx), JUDGE_POINTS, replace=False))
+    else:
+        idx_j = np.arange(len(idx))
+    return start, idx, idx_j
+
+
+def _size_seen(X, D, fit: FitResult, r: float, h: float) -> tuple[float, float]:
+    """(radius, its standard deviation) the cone model supports: free radius, robustly, on the
+    returns inside the disc of the known-radius fit (its chain, stick or stand lies outside).
+    NaNs if no fit."""
+    cn = float(np.linalg.norm(fit.center_m))
+    disc = angle_to_axis_rad(D, fit.center_m / cn) <= 1.05 * (np.arcsin(r / cn) + h)
+    fine = fit_sphere(X[disc], fit.center_m, r, model="cone", free_radius=True,
+                      half_angle_rad=h, sigma0_m=max(fit.sigma_m, 1e-3))
+    if not fine.ok:
+        return float("nan"), float("nan")
+    return fine.radius_m, float(np.sqrt(max(fine.cov_radius_m2, 0.0)))
+
+
+def _score(coverage: float, purity: float, r_cone: float, r: float, sig: float) -> float:
+    rel = (r_cone - r) / r if np.isfinite(r_cone) else 0.0
+    s = coverage * purity * float(np.exp(-0.5 * (rel / 0.15) ** 2)) / (1 + (sig / (0.1 * r)) ** 2)
+    return float(np.clip(s, 0, 1))
 
 
 def _judge(P: np.ndarray, cand: Candidate, r: float, h: float, seeded: bool,
@@ -146,87 +223,82 @@ def _judge(P: np.ndarray, cand: Candidate, r: float, h: float, seeded: bool,
     free radius differs by more than DIAMETER_TOL (a decoy, or a wrong diameter in
     session.yaml) the candidate is judged, and later refined, with the radius it shows.
     """
-    cn0 = float(np.linalg.norm(cand.center_m))
-    start = start_center(cand, r)
-    crop_r = 1.6 * r + cn0 * np.tan(h) + 0.05
-    idx = crop_ball(P, start, crop_r)
-    bad = _Judged(cand, idx, np.arange(len(idx)), None, float("nan"), 0.0, 0.0, 0.0, "")
+    start, idx, idx_j = _crop(P, cand, r, h)
+    bad = _Judged(cand, idx, idx_j, None, float("nan"), 0.0, 0.0, 0.0, "")
     if len(idx) < MIN_INLIERS:
-        bad.problem = f"too few points on the candidate ({len(idx)})"
+        bad.problem = f"too few returns on the sphere ({len(idx)})"
         return bad
-    # judged on at most JUDGE_POINTS points (a random subset); _finish refits on them all
-    if len(idx) > JUDGE_POINTS:
-        idx_j = np.sort(np.random.default_rng(0).choice(len(idx), JUDGE_POINTS, replace=False))
-    else:
-        idx_j = np.arange(len(idx))
     X = P[idx[idx_j]]
-    bad.idx_j = idx_j
-    # cheap first look on at most QUICK_POINTS points: most clutter ends here
-    Xq = X[::max(1, len(X) // QUICK_POINTS)]
-    quick = fit_sphere(Xq, start, r, model="cone", half_angle_rad=h, sigma0_m=0.01, n_rounds=2)
-    bad.fit = quick
-    if not quick.ok or np.linalg.norm(quick.center_m - start) > r:
-        bad.problem = "sphere fit did not converge"
+    look = _first_look(X, start, r, h, noise_m, bad)
+    if look is None:
         return bad
-    qfree = None
-
-    def other_size_start():
-        """(centre, radius) of a sphere of another size seen in the first-look points, or None."""
-        nonlocal qfree
-        if qfree is None:
-            qfree = fit_sphere(Xq, quick.center_m, r, model="cone", free_radius=True,
-                               half_angle_rad=h, sigma0_m=0.01, n_rounds=2)
-        if (qfree.ok and qfree.sigma_m <= _max_sigma(qfree.radius_m, noise_m)
-                and 0.6 * r <= qfree.radius_m <= 1.6 * r):
-            return qfree.center_m, qfree.radius_m
-        return None
-
-    if quick.sigma_m > 1.5 * _max_sigma(r, noise_m):
-        bad.problem = f"returns too scattered for a sphere (sigma {quick.sigma_m * 1000:.0f} mm)"
-        if other_size_start() is None:
-            return bad  # ... unless it is a sphere of another size
-    fit = fit_sphere(X, quick.center_m, r, model="cone", half_angle_rad=h,
-                     sigma0_m=max(min(quick.sigma_m, 0.01), 1e-3), warm=True)
+    fit = fit_sphere(X, look.quick.center_m, r, model="cone", half_angle_rad=h,
+                     sigma0_m=max(min(look.quick.sigma_m, 0.01), 1e-3), warm=True)
     bad.fit = fit
     cn = float(np.linalg.norm(fit.center_m))
     if not fit.ok or cn <= r or np.linalg.norm(fit.center_m - start) > r:
         bad.problem = "sphere fit did not converge"
         return bad
-    if fit.sigma_m > _max_sigma(r, noise_m) and other_size_start() is None:
+    if fit.sigma_m > _max_sigma(r, noise_m) and look.other_size_start() is None:
         bad.problem = f"returns too scattered for a sphere (sigma {fit.sigma_m * 1000:.0f} mm)"
         return bad
     R = np.linalg.norm(X, axis=1)
     D = X / R[:, None]
     coverage, purity, problem = _assess(X, R, D, fit, r, h, seeded, noise_m)
-    r_fit, r_cone = r, float("nan")
-    if not problem:  # the diameter the cone model supports: free radius, robustly, on the
-        # returns inside the disc of the known-radius fit (its chain or stand lies outside)
-        cn = float(np.linalg.norm(fit.center_m))
-        disc = angle_to_axis_rad(D, fit.center_m / cn) <= 1.05 * (np.arcsin(r / cn) + h)
-        fine = fit_sphere(X[disc], fit.center_m, r, model="cone", free_radius=True,
-                          half_angle_rad=h, sigma0_m=max(fit.sigma_m, 1e-3))
-        r_cone = fine.radius_m if fine.ok else float("nan")
-    start_free = other_size_start() if problem or not abs(r_cone - r) <= DIAMETER_TOL * r else None
-    if start_free is not None:
-        # perhaps a sphere of another size (a decoy, or a wrong diameter in session.yaml):
-        # free radius, robustly on all points, judged with the size it shows
-        free = fit_sphere(X, start_free[0], start_free[1], model="cone", free_radius=True,
-                          half_angle_rad=h, sigma0_m=max(min(fit.sigma_m, 0.01), 1e-3))
-        tol = max(DIAMETER_TOL * r, 3.0 * np.sqrt(max(free.cov_radius_m2, 0.0)))
-        if (free.ok and abs(free.radius_m - r) > tol and 0.6 * r <= free.radius_m <= 1.6 * r
-                and float(np.linalg.norm(free.center_m)) > free.radius_m):
-            fit, r_fit, r_cone = free, free.radius_m, free.radius_m
-            coverage, purity, problem = _assess(X, R, D, fit, r_fit, h, seeded, noise_m)
+    r_fit = r
+    r_cone, sd = (float("nan"), 0.0) if problem else _size_seen(X, D, fit, r, h)
+    # sparse scans (a few LiDAR rings) pin the size loosely: allow for its uncertainty
+    tol = max(DIAMETER_TOL * r, 3.0 * sd) if np.isfinite(sd) else DIAMETER_TOL * r
+    if problem or not abs(r_cone - r) <= tol:
+        other = _as_other_size(X, R, D, look, fit, r, h, seeded, noise_m)
+        if other is not None:
+            fit, r_fit, r_cone, (coverage, purity, problem) = other
     if seeded and problem.startswith(RING_PROBLEM):  # the operator says it is the sphere
         problem = ""
     if not problem and not (np.isfinite(r_cone) and 0.6 * r <= r_cone <= 1.6 * r
-                            and (r_fit != r or abs(r_cone - r) <= DIAMETER_TOL * r)):
-        problem = f"wrong size (diameter {2 * r_cone:.3f} m, expected {2 * r:.3f} m)"
-    rel = (r_cone - r) / r if np.isfinite(r_cone) else 0.0
-    sig = fit.sigma_m
-    score = coverage * purity * float(np.exp(-0.5 * (rel / 0.15) ** 2)) / (1 + (sig / (0.1 * r)) ** 2)
+                            and (r_fit != r or abs(r_cone - r) <= tol)):
+        problem = size_problem(r_cone, r)
     return _Judged(cand, idx, idx_j, fit, float(r_cone), coverage, purity,
-                   float(np.clip(score, 0, 1)), problem, r_fit)
+                   _score(coverage, purity, r_cone, r, fit.sigma_m), problem, r_fit)
+
+
+def _first_look(X, start, r, h, noise_m, bad: _Judged) -> _FirstLook | None:
+    """Cheap fit on at most QUICK_POINTS points (most clutter ends here); None (with
+    ``bad.problem`` set) when the candidate is hopeless."""
+    Xq = X[::max(1, len(X) // QUICK_POINTS)]
+    quick = fit_sphere(Xq, start, r, model="cone", half_angle_rad=h, sigma0_m=0.01, n_rounds=2)
+    bad.fit = quick
+    if not quick.ok or np.linalg.norm(quick.center_m - start) > r:
+        bad.problem = "sphere fit did not converge"
+        return None
+    look = _FirstLook(Xq, quick, r, h, noise_m)
+    if quick.sigma_m > 1.5 * _max_sigma(r, noise_m) and look.other_size_start() is None:
+        bad.problem = f"returns too scattered for a sphere (sigma {quick.sigma_m * 1000:.0f} mm)"
+        return None  # ... unless it is a sphere of another size
+    return look
+
+
+def _as_other_size(X, R, D, look: _FirstLook, fit: FitResult, r, h, seeded, noise_m):
+    """Perhaps a sphere of another size (a decoy, or a wrong diameter in session.yaml): free
+    radius, robustly on all points, judged with the size it shows. (fit, r_fit, r_cone,
+    assessment) or None."""
+    start_free = look.other_size_start()
+    if start_free is None:
+        return None
+    free = fit_sphere(X, start_free[0], start_free[1], model="cone", free_radius=True,
+                      half_angle_rad=h, sigma0_m=max(min(fit.sigma_m, 0.01), 1e-3))
+    tol = max(DIAMETER_TOL * r, 3.0 * np.sqrt(max(free.cov_radius_m2, 0.0)))
+    if (free.ok and abs(free.radius_m - r) > tol and 0.6 * r <= free.radius_m <= 1.6 * r
+            and float(np.linalg.norm(free.center_m)) > free.radius_m):
+        return free, free.radius_m, free.radius_m, _assess(X, R, D, free, free.radius_m, h, seeded, noise_m)
+    return None
+
+
+def size_problem(r_seen: float, r: float) -> str:
+    """The reason shown when the sphere's size disagrees with session.yaml's diameter."""
+    if not np.isfinite(r_seen):
+        return "sphere size could not be measured"
+    return f"sphere seen {2 * r_seen:.2f} m across, {2 * r:.2f} m expected"
 
 
 def _not_found(reason: str, method: str, **extras) -> SonarDetection:

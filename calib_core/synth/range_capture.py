@@ -17,6 +17,9 @@ from calib_core.synth.scene import Scene
 from calib_core.synth.sonar_sim import SonarConfig, simulate_scan
 
 SENSORS = ("lidar16", "rgbd", "sonar")
+# ball radii used with each sensor: a 16-ring LiDAR needs a big ball (0.5-0.7 m gym balls;
+# its rings are 2 deg apart), RGB-D and sonar targets are smaller
+RADIUS_RANGE_M = {"lidar16": (0.25, 0.35), "rgbd": (0.15, 0.3), "sonar": (0.1, 0.3)}
 
 
 def sensor_config(sensor: str, rng: np.random.Generator):
@@ -61,7 +64,7 @@ def range_capture(seed: int, sensor: str, holder: str, radius_m: float | None = 
     """(points_sensor_m (N,3), center_sensor_m (3,), radius_m) of one synthetic capture."""
     rng = np.random.default_rng([int(seed), 4243, SENSORS.index(sensor), range_scenes.HOLDERS.index(holder)])
     cfg = sensor_config(sensor, rng)
-    r = float(radius_m if radius_m is not None else rng.uniform(0.15, 0.32))
+    r = float(radius_m if radius_m is not None else rng.uniform(*RADIUS_RANGE_M[sensor]))
     h = float(height_m if height_m is not None else rng.uniform(0.8, 1.3))
     floor_z = -h
     far = 3.8 if sensor == "rgbd" else 4.0
