@@ -379,10 +379,10 @@ def detect_sphere_in_cloud(points_sonar_m: np.ndarray, sphere_radius_m: float,
     elif not nominal:  # sphere-like, but not of session.yaml's size: a decoy or a wrong diameter
         k = max(other, key=lambda j: j.score)
         return _not_found(
-            f"only a sphere of another size: diameter {2 * k.radius_cone_m:.3f} m, session.yaml "
+            f"only a sphere of another size: seen {2 * k.radius_cone_m:.3f} m across, session.yaml "
             f"says {2 * r:.3f} m (check the diameter, or pick the sphere by hand)", method,
             n_points=n_all, candidate_center=[round(float(v), 4) for v in k.fit.center_m],
-            candidate_diameter_m=round(2 * k.radius_cone_m, 4))
+            candidate_diameter_m=round(2 * k.radius_cone_m, 3))
     else:
         chosen = nominal[0]
         if other:
@@ -435,10 +435,10 @@ def _finish(P, W, base, j: _Judged, r, h, method, n_all, info, extras) -> SonarD
         "plane_noise_m": round(float(info["noise_m"]), 5) if np.isfinite(info["noise_m"]) else None,
     })
     if other_size:
-        extras["warning"] = (f"sonar sees a sphere of diameter {2 * j.radius_cone_m:.3f} m, "
+        extras["warning"] = (f"sphere seen {2 * j.radius_cone_m:.3f} m across, "
                              f"session.yaml says {2 * r:.3f} m")
     elif np.isfinite(j.radius_cone_m) and abs(j.radius_cone_m - r) > DIAMETER_WARN * r:
-        extras["warning"] = (f"sonar sees a sphere of diameter {2 * j.radius_cone_m:.3f} m, "
+        extras["warning"] = (f"sphere seen {2 * j.radius_cone_m:.3f} m across, "
                              f"session.yaml says {2 * r:.3f} m: check the diameter or the "
                              f"beam width (sonar_beam.estimate_beam_width_deg)")
     if other_size and method == "cone-model":
