@@ -69,6 +69,7 @@ MAX_RING_SECTORS = 8  # of 16 around the outline merge with a surface: a cap of 
 # unless an operator picked it (then fitted with the diameter it shows, with a warning)
 DIAMETER_TOL = 0.15
 DIAMETER_WARN = 0.06  # relative: above it a found sphere carries a warning
+CLEAR_WINNER = 3.0  # score ratio above which the best of two same-size candidates is taken
 MODEL_FLOOR_BEAM_FRACTION = 0.02  # 1-sigma model error per axis, as a fraction of range x beam width
 
 
@@ -365,17 +366,19 @@ def detect_sphere_in_cloud(points_sonar_m: np.ndarray, sphere_radius_m: float,
     if not good:
         best = max(judged, key=lambda j: j.score)
         why = best.problem or "no sphere-like cluster"
-        return _not_found(f"no sphere-like cluster ({why})", method, n_points=n_all,
-                          n_candidates=len(judged))
+        at = float(np.linalg.norm(best.cand.center_m))
+        return _not_found(f"no sphere-like cluster (best candidate, {at:.2f} m away: {why})",
+                          method, n_points=n_all, n_candidates=len(judged))
     extras: dict = {}
     nominal = [j for j in good if j.radius_fit_m == r]
     other = [j for j in good if j.radius_fit_m != r]
     if seed is not None:  # the operator's pick decides, whatever its size
         chosen = min(good, key=lambda j: np.linalg.norm(j.fit.center_m - seed))
-    elif len(nominal) > 1:
+    elif len(nominal) > 1 and nominal[0].score < CLEAR_WINNER * nominal[1].score:
+        at = " and ".join(f"{np.linalg.norm(k.fit.center_m):.2f} m" for k in nominal[:3])
         pos = "; ".join(str(np.round(k.fit.center_m, 3).tolist()) for k in nominal[:3])
-        return _not_found(f"two candidates (at {pos} m)", method, n_points=n_all,
-                          n_candidates=len(good))
+        return _not_found(f"two candidates: round objects of the sphere's size at {at} "
+                          f"(centres {pos} m)", method, n_points=n_all, n_candidates=len(good))
     elif not nominal:  # sphere-like, but not of session.yaml's size: a decoy or a wrong diameter
         k = max(other, key=lambda j: j.score)
         return _not_found(
@@ -385,6 +388,9 @@ def detect_sphere_in_cloud(points_sonar_m: np.ndarray, sphere_radius_m: float,
             candidate_diameter_m=round(2 * k.radius_cone_m, 3))
     else:
         chosen = nominal[0]
+        if len(nominal) > 1:  # a clear winner: say what else was seen
+            extras["warning"] = (f"another round object at {np.linalg.norm(nominal[1].fit.center_m):.2f} m "
+                                 f"scored {nominal[1].score:.2f} against {chosen.score:.2f}")
         if other:
             extras["ignored_other_sizes_m"] = [round(2 * k.radius_cone_m, 4) for k in other]
     return _finish(P, W, base, chosen, r, h, method, n_all, info, extras)
@@ -434,13 +440,14 @@ def _finish(P, W, base, j: _Judged, r, h, method, n_all, info, extras) -> SonarD
         "planes_removed": int(info.get("planes_removed", 0)),
         "plane_noise_m": round(float(info["noise_m"]), 5) if np.isfinite(info["noise_m"]) else None,
     })
+    size_note = ""
+    seen = f"sphere seen {2 * j.radius_cone_m:.3f} m across, session.yaml says {2 * r:.3f} m"
     if other_size:
-        extras["warning"] = (f"sphere seen {2 * j.radius_cone_m:.3f} m across, "
-                             f"session.yaml says {2 * r:.3f} m")
+        size_note = seen
     elif np.isfinite(j.radius_cone_m) and abs(j.radius_cone_m - r) > DIAMETER_WARN * r:
-        extras["warning"] = (f"sphere seen {2 * j.radius_cone_m:.3f} m across, "
-                             f"session.yaml says {2 * r:.3f} m: check the diameter or the "
-                             f"beam width (sonar_beam.estimate_beam_width_deg)")
+        size_note = seen + ": check the diameter or the beam width (sonar_beam.estimate_beam_width_deg)"
+    if size_note:
+        extras["warning"] = "; ".join(w for w in (extras.get("warning"), size_note) if w)
     if other_size and method == "cone-model":
         extras["fitted_with_diameter_m"] = round(2 * cone.radius_m, 4)
     return SonarDetection(
