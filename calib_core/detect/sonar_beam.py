@@ -29,6 +29,10 @@ MAX_CAPTURES = 12  # spheres used (spread over the session): enough to pin one s
 DEFAULT_FACTORS = tuple(np.round(np.r_[0.0, 0.05, np.arange(0.1, 1.601, 0.1)], 3))
 # the smallest width returned: a LiDAR's beam divergence; also keeps 0 from reading as "unset"
 MIN_WIDTH_DEG = 0.001
+# a footprint is adopted only when it explains the returns clearly better than none: the total
+# cost must drop by more than this fraction (range scatter at a LiDAR's or RGB-D camera's
+# limb, and things touching the ball, lower it by ~1 % at a few hundredths of a degree)
+ZERO_WIDTH_MARGIN = 0.02
 
 
 @dataclass
@@ -104,6 +108,8 @@ def estimate_beam_width_deg(clouds_sonar_m: list, sphere_radius_m: float,
     best = float(factors[b])
     if 0 < b < len(factors) - 1:  # parabola through the minimum and its neighbours
         best = _parabola_vertex(factors[b - 1:b + 2], costs[b - 1:b + 2])
+    if factors[0] == 0 and costs[0] <= (1.0 + ZERO_WIDTH_MARGIN) * costs[b]:
+        best = 0.0  # no footprint explains the returns as well: do not invent one
     reason = "" if b < len(factors) - 1 else "at the edge of the scanned range"
     best = max(best * float(nominal_deg), MIN_WIDTH_DEG)
     return BeamWidthEstimate(best, float(nominal_deg), len(crops), reason,
