@@ -63,7 +63,7 @@ MIN_INLIERS = 12
 MIN_COVERAGE = 0.7
 MIN_COVERAGE_SEEDED = 0.4
 MIN_PURITY = 0.6
-MAX_RING_SECTORS = 8  # of 16 around the outline merge with a surface: a cap of it, not a ball resting on it
+MAX_RING_SECTORS = 10  # of 16 around the outline continued by a surface: a cap of it, not a ball resting on it
 # relative: a larger difference between the diameter the cone model sees and session.yaml's
 # makes it "a sphere of another size" (a decoy, or a wrong diameter): reported, never used,
 # unless an operator picked it (then fitted with the diameter it shows, with a warning)
@@ -103,24 +103,33 @@ def _max_sigma(radius: float, noise_m: float) -> float:
     return max(MAX_SIGMA_REL * radius, 2.0 * noise_m + 0.002 if np.isfinite(noise_m) else 0.0)
 
 
-def _merged_sectors(R, D, c, radius: float, alpha: float, h: float, noise_m: float) -> int:
-    """In how many of 16 directions around the sphere's outline the surface just outside it
-    continues at the limb's range (a cap of a larger surface: a boulder, a dome, a bump).
-    A real sphere's outline is a depth step: what lies behind it (a chair's back, a wall, a
-    person) is farther, what hides part of it (a stick, a hand) nearer; only the spot where
-    it rests on a seat, a table or the seabed continues at the limb's range."""
+def _attached_span(R, D, c, radius: float, alpha: float, h: float, noise_m: float) -> int:
+    """Over how many of 16 directions around the sphere's outline (one contiguous arc, the
+    shortest that holds them all) something continues it: returns just outside the outline
+    at or in front of the limb's range. A real sphere's outline is a depth step: what lies
+    behind it (a chair's back, a wall, a person) does not count; what holds it (a seat, a
+    table, a stick, a stand) touches it along one arc. A cap of a larger surface (a boulder,
+    a dome) is continued all round, a pile or a pipe on opposite sides: a long arc."""
     cn = float(np.linalg.norm(c))
     limb = float(np.sqrt(max(cn * cn - radius * radius, 0.0)))
     tol = max(0.3 * radius, 4.0 * noise_m if np.isfinite(noise_m) else 0.0)
     theta, ang = polar_about(D, c / cn)
     sel = (theta > alpha * 1.05) & (theta <= alpha * 1.05 + max(0.5 * alpha, 2 * h))
     sector = (ang[sel] / (2 * np.pi) * 16).astype(int) % 16
-    near = np.abs(R[sel] - limb) < tol
+    front = R[sel] < limb + tol
     n_all = np.bincount(sector, minlength=16)
-    n_near = np.bincount(sector[near], minlength=16)
-    # a sector merges when most of its returns continue the limb (flying pixels between a
-    # ball's edge and the background are a minority)
-    return int(((n_near >= 2) & (n_near >= 0.5 * n_all)).sum())
+    n_front = np.bincount(sector[front], minlength=16)
+    # a sector is attached when most of its returns continue the limb (flying pixels between
+    # a ball's edge and the background are a minority)
+    att = (n_front >= 2) & (n_front >= 0.5 * n_all)
+    if not att.any():
+        return 0
+    free = np.r_[~att, ~att]
+    gap, run = 0, 0
+    for f in free:  # longest circular run of free sectors
+        run = run + 1 if f else 0
+        gap = max(gap, min(run, 16))
+    return 16 - gap
 
 
 def _assess(X, R, D, fit: FitResult, radius: float, h: float, seeded: bool, noise_m: float):
@@ -140,7 +149,7 @@ def _assess(X, R, D, fit: FitResult, radius: float, h: float, seeded: bool, nois
     coverage = disc_coverage(D[inl], c / cn, alpha) / max(sampled, 1.0 / 12)
     sig = fit.sigma_m
     rough = _roughness_m(R[in_disc], D[in_disc])
-    ring = _merged_sectors(R, D, c, radius, alpha, h, noise_m)
+    ring = _attached_span(R, D, c, radius, alpha, h, noise_m)
     problem = ""
     if n_in < MIN_INLIERS:
         problem = f"too few returns on the sphere ({n_in})"
@@ -157,7 +166,7 @@ def _assess(X, R, D, fit: FitResult, radius: float, h: float, seeded: bool, nois
     elif coverage < (MIN_COVERAGE_SEEDED if seeded else MIN_COVERAGE):
         problem = f"sphere only partly seen (coverage {coverage:.0%})"
     elif ring > MAX_RING_SECTORS:  # (an operator's pick overrides this one, see _judge)
-        problem = f"{RING_PROBLEM} (merges with it in {ring}/16 directions around its outline)"
+        problem = f"{RING_PROBLEM} (it continues the outline over {ring}/16 of it)"
     return coverage, purity, problem
 
 
