@@ -71,6 +71,9 @@ def _plane_from_3(P3: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return n, np.einsum("ij,ij->i", n, P3[:, 0]), good
 
 
+MAX_FAILED_PLANES = 3  # plane hypotheses that fail the extent/density checks before giving up
+
+
 def remove_planes(Q: np.ndarray, min_extent_m: float, thr_m: float, rng: np.random.Generator,
                   max_planes: int = 4, n_hyp: int = 48, min_frac: float = 0.02,
                   min_count: int = 60, min_density: float = 0.1) -> tuple[np.ndarray, list]:
@@ -83,10 +86,13 @@ def remove_planes(Q: np.ndarray, min_extent_m: float, thr_m: float, rng: np.rand
     [(normal, offset, n_voxels)]).
     """
     keep = np.ones(len(Q), bool)
+    tried = np.zeros(len(Q), bool)  # inliers of a plane that failed the checks: not sampled again
     planes = []
     Qk = Q
-    for _ in range(max_planes):
-        idx = np.nonzero(keep)[0]
+    for _ in range(max_planes + MAX_FAILED_PLANES):
+        if len(planes) >= max_planes:
+            break
+        idx = np.nonzero(keep & ~tried)[0]
         Qk = Q[idx]
         if len(idx) < max(min_count, 10):
             break
@@ -114,8 +120,11 @@ def remove_planes(Q: np.ndarray, min_extent_m: float, thr_m: float, rng: np.rand
         inl = idx[np.abs(Qk @ nrm - off) < thr_m]
         spread = 4.0 * np.sqrt(np.maximum(ev[[2, 1]], 0.0))
         density = len(inl) * thr_m * thr_m / max(spread[0] * spread[1], 1e-12)
-        if len(inl) < min_count or spread[1] < min_extent_m or density < min_density:
+        if len(inl) < min_count:
             break
+        if spread[1] < min_extent_m or density < min_density:
+            tried[inl] = True  # (a sphere cap, scattered returns): look for another plane
+            continue
         keep[inl] = False
         planes.append((nrm, off, int(len(inl))))
     return keep, planes
