@@ -16,13 +16,19 @@ outside the true silhouette, nearer than the surface along their centre line: th
 bigger and closer. Fitting ``c`` with this model removes that bias; the naive fits (Euclidean
 distance to a sphere of known or free radius) are kept as baselines.
 
+The same detector serves any range sensor whose returns start at the frame origin: with a
+beam width of 0 (a LiDAR, an RGB-D camera) the cone model is the plain first-return model.
+
 Pipeline: coarse candidates on a thinned, voxelised cloud without its large planes, ranked
 and pre-screened (:mod:`.sonar_search`); the best few are re-fitted at full resolution inside
-a crop with the cone model and judged (residual scale against the sonar noise measured on the
-planes, coverage of the expected disc of beams, purity of the returns inside it, returns all
-around it, diameter). More than one acceptable candidate gives "two candidates"; a sphere of
-another size is reported, not used. The effective beam width can be estimated per session
-with :func:`calib_core.detect.sonar_beam.estimate_beam_width_deg`.
+a crop with the cone model and judged (residual scale against the sensor noise measured on the
+planes, coverage of the part of the disc the beams sampled, purity of the returns inside it,
+whether a surface continues its outline over a long arc, diameter). A sphere may rest on or
+hang from something on one side (a seat, a table, a stick, a chain). More than one acceptable
+candidate gives "two candidates" unless one scores CLEAR_WINNER times the other; a sphere of
+another size is reported, not used. Every refusal says why, in words an operator can act on.
+The effective beam width (down to 0) is estimated per session with
+:func:`calib_core.detect.sonar_beam.estimate_beam_width_deg`.
 
 Approximations: circular uniform beam cone (no beam pattern, side lobes or multipath). The
 covariance is the fit's (range noise) plus an isotropic model-error floor of
