@@ -97,3 +97,22 @@ def test_too_few_returns_names_the_count():
     few = np.vstack([far, P[np.linalg.norm(P - c, axis=1) <= 1.2 * r][:8]])
     det = detect_sphere_in_cloud(few, r, beam_width_deg=0.0)
     assert not det.found and det.reason
+
+
+# ---- a whole session, as the pipeline handles it ------------------------------------------
+def test_lidar_session_gets_a_zero_beam_width_and_every_ball(tmp_path):
+    from calib_core.pipeline import SessionData, detect_session
+    from calib_core.session import load_session
+    from calib_core.synth.generate import generate_session
+    from calib_core.synth.ground_truth import load_ground_truth
+
+    root = generate_session(tmp_path / "s", "lidar-chair", 5, scale=0.05, n_captures=4, n_backgrounds=0)
+    data = SessionData(load_session(root))
+    dets = detect_session(data, {})
+    assert data.beam_width_deg is not None and data.beam_width_deg < 0.05
+    gt = load_ground_truth(root)
+    for cid, d in dets.items():
+        e = d["sonar"]
+        assert e.get("center") is not None, (cid, e.get("reason"))
+        err = np.asarray(e["center"]) - np.asarray(gt["captures"][cid]["center_sonar_m"])
+        assert np.linalg.norm(err) < 0.01
