@@ -283,6 +283,8 @@ def _first_look(X, start, r, h, noise_m, bad: _Judged) -> _FirstLook | None:
     ``bad.problem`` set) when the candidate is hopeless."""
     Xq = X[::max(1, len(X) // QUICK_POINTS)]
     quick = fit_sphere(Xq, start, r, model="cone", half_angle_rad=h, sigma0_m=0.01, n_rounds=2)
+    if not quick.ok or quick.sigma_m > _max_sigma(r, noise_m):
+        quick = _restart(Xq, start, r, h, quick)
     bad.fit = quick
     if not quick.ok or np.linalg.norm(quick.center_m - start) > r:
         bad.problem = "sphere fit did not converge"
@@ -292,6 +294,18 @@ def _first_look(X, start, r, h, noise_m, bad: _Judged) -> _FirstLook | None:
         bad.problem = f"returns too scattered for a sphere (sigma {quick.sigma_m * 1000:.0f} mm)"
         return None  # ... unless it is a sphere of another size
     return look
+
+
+def _restart(Xq, start, r, h, quick: FitResult) -> FitResult:
+    """The first look again from six starts a quarter radius off the coarse centre (a coarse
+    centre pulled into the seat or table under the ball converges to a fit that takes it in);
+    the fit with the smallest residual scale."""
+    best = quick
+    for step in np.vstack([np.eye(3), -np.eye(3)]) * 0.25 * r:
+        f = fit_sphere(Xq, start + step, r, model="cone", half_angle_rad=h, sigma0_m=0.01, n_rounds=2)
+        if f.ok and np.linalg.norm(f.center_m - start) <= r and (not best.ok or f.sigma_m < best.sigma_m):
+            best = f
+    return best
 
 
 def _as_other_size(X, R, D, look: _FirstLook, fit: FitResult, r, h, seeded, noise_m):
