@@ -46,7 +46,7 @@ import numpy as np
 
 from scipy.spatial import cKDTree
 
-from calib_core.detect.sonar_fit import MAD_TO_SIGMA, FitResult, angle_to_axis_rad, fit_sphere
+from calib_core.detect.sonar_fit import MAD_TO_SIGMA, FitResult, angle_to_axis_rad, cone_residuals, fit_sphere
 from calib_core.detect.sonar_search import (
     Candidate,
     disc_coverage,
@@ -280,31 +280,50 @@ def _judge(P: np.ndarray, cand: Candidate, r: float, h: float, seeded: bool,
 
 def _first_look(X, start, r, h, noise_m, bad: _Judged) -> _FirstLook | None:
     """Cheap fit on at most QUICK_POINTS points (most clutter ends here); None (with
-    ``bad.problem`` set) when the candidate is hopeless."""
+    ``bad.problem`` set) when the candidate is hopeless. A hopeless first look is tried again
+    from six nearby starts (a coarse centre pulled into the seat or table under the ball)."""
     Xq = X[::max(1, len(X) // QUICK_POINTS)]
     quick = fit_sphere(Xq, start, r, model="cone", half_angle_rad=h, sigma0_m=0.01, n_rounds=2)
-    if not quick.ok or quick.sigma_m > _max_sigma(r, noise_m):
-        quick = _restart(Xq, start, r, h, quick)
-    bad.fit = quick
-    if not quick.ok or np.linalg.norm(quick.center_m - start) > r:
-        bad.problem = "sphere fit did not converge"
-        return None
     look = _FirstLook(Xq, quick, r, h, noise_m)
-    if quick.sigma_m > 1.5 * _max_sigma(r, noise_m) and look.other_size_start() is None:
-        bad.problem = f"returns too scattered for a sphere (sigma {quick.sigma_m * 1000:.0f} mm)"
-        return None  # ... unless it is a sphere of another size
+    if _hopeless(look, start):
+        look = _FirstLook(Xq, _restart(Xq, start, r, h, quick), r, h, noise_m)
+    bad.fit = look.quick
+    why = _hopeless(look, start)
+    if why:
+        bad.problem = why
+        return None
     return look
 
 
+def _hopeless(look: _FirstLook, start) -> str:
+    """Why a first look ends the candidate ("" if it does not)."""
+    q, r = look.quick, look.r
+    if not q.ok or np.linalg.norm(q.center_m - start) > r:
+        return "sphere fit did not converge"
+    if q.sigma_m > 1.5 * _max_sigma(r, look.noise_m) and look.other_size_start() is None:
+        return f"returns too scattered for a sphere (sigma {q.sigma_m * 1000:.0f} mm)"
+    return ""
+
+
 def _restart(Xq, start, r, h, quick: FitResult) -> FitResult:
-    """The first look again from six starts a quarter radius off the coarse centre (a coarse
-    centre pulled into the seat or table under the ball converges to a fit that takes it in);
-    the fit with the smallest residual scale."""
-    best = quick
+    """The first look from six starts a quarter radius off the coarse centre; the fit whose
+    returns are best explained (truncated quadratic cost at a fixed 1 cm scale, so fits that
+    keep different numbers of points compare fairly)."""
+    R = np.linalg.norm(Xq, axis=1)
+    D = Xq / R[:, None]
+
+    def cost(f: FitResult) -> float:
+        if not f.ok or np.linalg.norm(f.center_m - start) > r:
+            return np.inf
+        a, b = cone_residuals(f.center_m, r, R, D, h)
+        return float(np.sum(np.minimum(np.hypot(a, b) / 0.01, 3.0) ** 2))
+
+    best, best_cost = quick, cost(quick)
     for step in np.vstack([np.eye(3), -np.eye(3)]) * 0.25 * r:
         f = fit_sphere(Xq, start + step, r, model="cone", half_angle_rad=h, sigma0_m=0.01, n_rounds=2)
-        if f.ok and np.linalg.norm(f.center_m - start) <= r and (not best.ok or f.sigma_m < best.sigma_m):
-            best = f
+        c = cost(f)
+        if c < best_cost:
+            best, best_cost = f, c
     return best
 
 

@@ -88,7 +88,7 @@ def remove_planes(Q: np.ndarray, min_extent_m: float, thr_m: float, rng: np.rand
     principal axis), so a sphere cap is never taken for a plane, fills at least
     ``min_density`` of the voxel cells of its area (scattered returns are no plane) and is thin
     (MAX_PLANE_SCATTER). A hypothesis that fails is set aside and another tried (up to
-    MAX_FAILED_PLANES). The band removed is as thick as the plane's scatter. Returns (keep mask,
+    MAX_FAILED_PLANES). Returns (keep mask,
     [(normal, offset, n_voxels)]).
     """
     keep = np.ones(len(Q), bool)
@@ -124,10 +124,8 @@ def remove_planes(Q: np.ndarray, min_extent_m: float, thr_m: float, rng: np.rand
             ev, evec = np.linalg.eigh(Xc.T @ Xc / len(X))  # ascending: normal first
             nrm, off = evec[:, 0], float(mu @ evec[:, 0])
         dist = np.abs(Qk @ nrm - off)
-        # the band removed: as thick as the plane's own scatter shows (at least a third of the
-        # voxel), so that a ball resting on a table or a slab keeps all but its lowest returns
         sd = 1.4826 * float(np.median(dist[dist < thr_m])) if (dist < thr_m).any() else thr_m
-        inl = idx[dist < min(thr_m, max(3.5 * sd, thr_m / 3))]
+        inl = idx[dist < thr_m]
         spread = 4.0 * np.sqrt(np.maximum(ev[[2, 1]], 0.0))
         density = len(inl) * thr_m * thr_m / max(spread[0] * spread[1], 1e-12)
         if len(inl) < min_count:
