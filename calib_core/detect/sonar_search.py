@@ -298,6 +298,8 @@ def find_candidates(points_m: np.ndarray, radius_m: float, half_angle_rad: float
         ext = np.ptp(X, axis=0).max()
         if ext < 0.6 * r:
             continue
+        if ext > 3.0 * r and len(X) >= 3 * LOCAL_PLANE_MIN:
+            X = _without_local_planes(X, r, voxel, rng)
         for _attempt in range(min(6, 2 + len(X) // 200)):  # big clusters hide more
             rng_c = float(np.linalg.norm(X.mean(axis=0)))
             bloom = rng_c * np.tan(half_angle_rad)
@@ -343,6 +345,18 @@ def find_candidates(points_m: np.ndarray, radius_m: float, half_angle_rad: float
         cands = prescreen(P, cands, r, half_angle_rad, info["noise_m"])
         info["n_prescreened"] = len(cands)
     return cands, info
+
+
+LOCAL_PLANE_MIN = 20  # voxels of a plane inside one cluster (a table top seen at a grazing angle)
+
+
+def _without_local_planes(X: np.ndarray, r: float, voxel: float, rng: np.random.Generator) -> np.ndarray:
+    """The cluster's voxels without the planes it holds that are too small for the cloud-wide
+    search (a table top or a seat under the ball, seen at a grazing angle): up to two planes
+    wider than 3 radii (a sphere cap never is)."""
+    keep, planes = remove_planes(X, min_extent_m=3.0 * r, thr_m=voxel, rng=rng, max_planes=2,
+                                 min_frac=0.1, min_count=LOCAL_PLANE_MIN)
+    return X[keep] if planes and keep.sum() >= LOCAL_PLANE_MIN else X
 
 
 def prescreen(points_m: np.ndarray, cands: list[Candidate], r: float, half_angle_rad: float,
