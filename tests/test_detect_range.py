@@ -91,12 +91,14 @@ def test_wrong_diameter_is_named_in_metres():
     assert f"seen {2 * r:.2f}"[:-1] in det.reason and f"says {1.5 * r:.3f} m" in det.reason
 
 
-def test_too_few_returns_names_the_count():
+def test_a_ball_with_almost_no_returns_is_refused_and_the_reason_names_a_range():
     P, c, r = range_capture(3, "rgbd", "stick")
     far = P[np.linalg.norm(P - c, axis=1) > 1.2 * r]
     few = np.vstack([far, P[np.linalg.norm(P - c, axis=1) <= 1.2 * r][:8]])
     det = detect_sphere_in_cloud(few, r, beam_width_deg=0.0)
-    assert not det.found and det.reason
+    assert not det.found and det.center_sonar_m is None
+    assert det.reason.startswith("no sphere-like cluster")
+    assert "m away: " in det.reason or det.reason == "no sphere-like cluster"
 
 
 # ---- a whole session, as the pipeline handles it ------------------------------------------
