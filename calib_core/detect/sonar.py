@@ -280,12 +280,15 @@ def _judge(P: np.ndarray, cand: Candidate, r: float, h: float, seeded: bool,
 
 def _first_look(X, start, r, h, noise_m, bad: _Judged) -> _FirstLook | None:
     """Cheap fit on at most QUICK_POINTS points (most clutter ends here); None (with
-    ``bad.problem`` set) when the candidate is hopeless. A hopeless first look is tried again
-    from six nearby starts (a coarse centre pulled into the seat or table under the ball)."""
+    ``bad.problem`` set) when the candidate is hopeless. A hopeless or rough first look is
+    tried again from six nearby starts (a coarse centre pulled into the seat or table under the
+    ball)."""
     Xq = X[::max(1, len(X) // QUICK_POINTS)]
     quick = fit_sphere(Xq, start, r, model="cone", half_angle_rad=h, sigma0_m=0.01, n_rounds=2)
     look = _FirstLook(Xq, quick, r, h, noise_m)
-    if _hopeless(look, start):
+    # scattered beyond the sensor noise: perhaps a basin that takes in what holds the ball
+    rough = np.isfinite(noise_m) and quick.ok and quick.sigma_m > 2.0 * noise_m + 0.002
+    if rough or _hopeless(look, start):
         look = _FirstLook(Xq, _restart(Xq, start, r, h, quick), r, h, noise_m)
     bad.fit = look.quick
     why = _hopeless(look, start)
