@@ -13,6 +13,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from scipy import ndimage
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
@@ -134,9 +135,32 @@ def remove_planes(Q: np.ndarray, min_extent_m: float, thr_m: float, rng: np.rand
             tried[inl] = True  # (a sphere cap, scattered returns, a ball and a person that
             # happen to line up): look for another plane
             continue
+        inl = _plane_pieces(Q, inl, evec[:, 1:], thr_m, 0.5 * min_extent_m)
         keep[inl] = False
         planes.append((nrm, off, int(len(inl))))
     return keep, planes
+
+
+def _plane_pieces(Q: np.ndarray, inl: np.ndarray, axes: np.ndarray, thr_m: float,
+                  min_piece_m: float) -> np.ndarray:
+    """The plane's inliers that belong to connected pieces at least ``min_piece_m`` across
+    (pieces: 8-connected cells of 2 x ``thr_m`` in the plane's own axes ``axes`` (3,2)): a
+    ball that merely touches the plane (a table's front legs and the ball's front line up)
+    is a small separate piece and stays."""
+    uv = Q[inl] @ axes
+    cell = np.floor((uv - uv.min(axis=0)) / (2.0 * thr_m)).astype(int)
+    grid = np.zeros(cell.max(axis=0) + 1, bool)
+    grid[cell[:, 0], cell[:, 1]] = True
+    lab_grid, n = ndimage.label(grid, structure=np.ones((3, 3), bool))
+    if n <= 1:
+        return inl
+    lab = lab_grid[cell[:, 0], cell[:, 1]] - 1
+    lo = np.full((n, 2), np.inf)
+    hi = np.full((n, 2), -np.inf)
+    np.minimum.at(lo, lab, uv)
+    np.maximum.at(hi, lab, uv)
+    big = (hi - lo).max(axis=1) >= min_piece_m
+    return inl[big[lab]]
 
 
 def plane_range_noise_m(points_m: np.ndarray, planes: list, thr_m: float,
