@@ -126,7 +126,8 @@ def remove_planes(Q: np.ndarray, min_extent_m: float, thr_m: float, rng: np.rand
             nrm, off = evec[:, 0], float(mu @ evec[:, 0])
         dist = np.abs(Qk @ nrm - off)
         sd = 1.4826 * float(np.median(dist[dist < thr_m])) if (dist < thr_m).any() else thr_m
-        inl = idx[dist < thr_m]
+        on = dist < thr_m
+        inl = idx[on]
         spread = 4.0 * np.sqrt(np.maximum(ev[[2, 1]], 0.0))
         density = len(inl) * thr_m * thr_m / max(spread[0] * spread[1], 1e-12)
         if len(inl) < min_count:
@@ -135,18 +136,19 @@ def remove_planes(Q: np.ndarray, min_extent_m: float, thr_m: float, rng: np.rand
             tried[inl] = True  # (a sphere cap, scattered returns, a ball and a person that
             # happen to line up): look for another plane
             continue
-        inl = _plane_pieces(Q, inl, evec[:, 1:], thr_m, 0.5 * min_extent_m)
+        inl = _plane_pieces(Q, inl, evec[:, 1:], thr_m, 0.5 * min_extent_m, dist[on], sd)
         keep[inl] = False
         planes.append((nrm, off, int(len(inl))))
     return keep, planes
 
 
 def _plane_pieces(Q: np.ndarray, inl: np.ndarray, axes: np.ndarray, thr_m: float,
-                  min_piece_m: float) -> np.ndarray:
+                  min_piece_m: float, dist_m: np.ndarray, sd_m: float) -> np.ndarray:
     """The plane's inliers that belong to connected pieces at least ``min_piece_m`` across
     (pieces: 8-connected cells of 2 x ``thr_m`` in the plane's own axes ``axes`` (3,2)): a
     ball that merely touches the plane (a table's front legs and the ball's front line up)
-    is a small separate piece and stays."""
+    is a small separate piece, curved through the band (rms distance ``dist_m`` over twice the
+    plane's scatter ``sd_m``), and stays."""
     uv = Q[inl] @ axes
     cell = np.floor((uv - uv.min(axis=0)) / (2.0 * thr_m)).astype(int)
     grid = np.zeros(cell.max(axis=0) + 1, bool)
@@ -160,7 +162,12 @@ def _plane_pieces(Q: np.ndarray, inl: np.ndarray, axes: np.ndarray, thr_m: float
     np.minimum.at(lo, lab, uv)
     np.maximum.at(hi, lab, uv)
     big = (hi - lo).max(axis=1) >= min_piece_m
-    return inl[big[lab]]
+    # a small piece as flat as the plane is the plane (a patch cut off by a shadow); a small
+    # piece spread through the band is something curved that touches it (a ball)
+    cnt = np.bincount(lab, minlength=n)
+    rms = np.sqrt(np.bincount(lab, weights=dist_m ** 2, minlength=n) / np.maximum(cnt, 1))
+    flat = rms <= 2.0 * max(sd_m, 1e-9)
+    return inl[(big | flat)[lab]]
 
 
 def plane_range_noise_m(points_m: np.ndarray, planes: list, thr_m: float,
