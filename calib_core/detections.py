@@ -17,6 +17,7 @@ from pathlib import Path
 
 from calib_core.errors import SessionError, short_repr
 from calib_core.io.atomic import atomic_write_yaml
+from calib_core.io.yaml_safe import read_yaml_mapping
 
 DETECTIONS_FORMAT = "sonar-camera-detections/1"
 DETECTIONS_FILE = "detections.yaml"
@@ -31,8 +32,6 @@ def detections_path(session) -> Path:
 
 def load_detections(session) -> dict:
     """Read and validate the session's detections.yaml ({} when it does not exist)."""
-    from calib_core.session import read_yaml_mapping
-
     path = detections_path(session)
     if not path.exists():
         return {}

@@ -19,10 +19,10 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-import yaml
 
 from calib_core.camera import CameraModel
 from calib_core.errors import SessionError, short_repr
+from calib_core.io.yaml_safe import read_yaml_mapping
 
 SESSION_FORMAT = "sonar-camera-session/1"
 MANIFEST = "session.yaml"
@@ -122,33 +122,7 @@ def _num(manifest, value, what, positive=True):
     return v
 
 
-MAX_YAML_BYTES = 50 * 1024 * 1024
 _YAML11_EXPONENT = re.compile(r"^[-+]?(\d+\.?\d*|\.\d+)[eE][-+]?\d+$")
-
-
-def read_yaml_mapping(path: Path, what: str = "file") -> dict:
-    """Read a YAML file that must hold a mapping; clear errors for missing/invalid files."""
-    if not path.is_file():
-        raise SessionError(path, f"{what} not found" if not path.exists() else f"{what} is not a regular file")
-    try:
-        if path.stat().st_size > MAX_YAML_BYTES:
-            raise SessionError(path, f"{what} is {path.stat().st_size / 1e6:.0f} MB: too large for a YAML file here")
-        text = path.read_text(encoding="utf-8-sig")
-    except UnicodeDecodeError:
-        raise SessionError(path, "not a text file (invalid UTF-8)") from None
-    except OSError as e:
-        raise SessionError(path, f"cannot read {what}: {e.strerror or e}") from None
-    try:
-        data = yaml.load(text, Loader=getattr(yaml, "CSafeLoader", yaml.SafeLoader))  # libyaml: same YAML, faster
-    except yaml.YAMLError as e:
-        mark = getattr(e, "problem_mark", None)
-        where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark else ""
-        raise SessionError(path, f"invalid YAML{where}: {getattr(e, 'problem', None) or e}") from None
-    except RecursionError:
-        raise SessionError(path, "invalid YAML: nested too deeply") from None
-    if not isinstance(data, dict):
-        raise SessionError(path, f"expected a YAML mapping at the top level, got {type(data).__name__}")
-    return data
 
 
 def load_session(folder: str | Path) -> Session:
@@ -250,17 +224,33 @@ def load_session(folder: str | Path) -> Session:
 
     return Session(
         root=root,
-        name=str(data.get("name") or root.name),
+        name=_session_name(manifest, data.get("name"), root.name),
         sphere_diameter_m=diameter,
         cameras=cameras,
         captures=captures,
-        sonar_model=str(sonar.get("model") or ""),
+        sonar_model=_plain_text(manifest, sonar.get("model"), "sonar.model", ""),
         sound_speed_m_s=sound_speed,
         beam_width_deg=beam,
         measured_m=measured,
         stereo=stereo,
         raw=data,
     )
+
+
+def _plain_text(manifest: Path, value, what: str, default: str) -> str:
+    """A free-text field: a string or number of at most 200 characters (never str() of a tree)."""
+    if value is None or value == "":
+        return default
+    if isinstance(value, bool) or not isinstance(value, (str, int, float)):
+        raise SessionError(manifest, f"{what} must be text, got a {type(value).__name__}")
+    text = value if isinstance(value, str) else repr(value)
+    if len(text) > 200 or "\x00" in text:
+        raise SessionError(manifest, f"{what} must be text of at most 200 characters without NUL")
+    return text
+
+
+def _session_name(manifest: Path, value, default: str) -> str:
+    return _plain_text(manifest, value, "name", default)
 
 
 def _check_name(manifest: Path, name: str, what: str) -> None:
