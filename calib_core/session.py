@@ -315,7 +315,8 @@ def validate_session(folder: str | Path) -> SessionCheck:
         if spec.background_path is not None:
             try:
                 start, end = spec.background_window_s
-                frames = load_background_frames(spec.background_path, start_s=start, end_s=end)
+                wh = (models[name].width_px, models[name].height_px) if name in models else None
+                frames = load_background_frames(spec.background_path, wh, start_s=start, end_s=end)
                 if name in models:
                     _check_size(spec.background_path, frames[0], models[name], problems)
             except SessionError as e:
@@ -327,7 +328,7 @@ def validate_session(folder: str | Path) -> SessionCheck:
             problems.append(e)
         for cam, p in cap.image_paths.items():
             try:
-                img = load_image(p)
+                img = load_image(p, (models[cam].width_px, models[cam].height_px) if cam in models else None)
                 if cam in models:
                     _check_size(p, img, models[cam], problems)
             except SessionError as e:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import struct
 from pathlib import Path
 
 import cv2
@@ -9,14 +10,73 @@ import numpy as np
 
 from calib_core.errors import SessionError
 
-MAX_IMAGE_BYTES = 512 * 2**20
-MAX_IMAGE_PIXELS = 200_000_000
+MAX_IMAGE_BYTES = 200 * 2**20
+MAX_IMAGE_PIXELS = 40_000_000  # 7680 x 5120; decoded RGB at this size is 120 MB
+MAX_BACKGROUND_FILES = 100  # a background folder is sampled evenly down to this many frames
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".webp")
 VIDEO_SUFFIXES = (".mp4", ".avi", ".mov", ".mkv", ".m4v")
 
 
-def load_image(path: str | Path) -> np.ndarray:
-    """Read an image file as RGB uint8 (H,W,3); greyscale is expanded to 3 channels."""
+def read_image_header(path: str | Path) -> tuple[int, int]:
+    """(width, height) from the image file's header, without decoding the pixels.
+
+    Every format OpenCV would decode here (PNG, JPEG, BMP, TIFF, WebP ...) is identified by
+    PIL, which reads only the header. A file PIL cannot identify, or whose header claims
+    more than MAX_IMAGE_PIXELS, is refused.
+    """
+    from PIL import Image, UnidentifiedImageError
+
+    path = Path(path)
+    try:
+        with Image.open(path) as im:
+            w, h = im.size
+    except Image.DecompressionBombError:
+        raise SessionError(path, "image header claims too many pixels to be a camera frame") from None
+    except (UnidentifiedImageError, SyntaxError, ValueError, TypeError, EOFError, struct.error, OSError,
+            IndexError, KeyError, ZeroDivisionError, OverflowError, MemoryError):
+        wh = _tiff_size(path)  # PIL does not open every TIFF OpenCV does (e.g. 3-channel float)
+        if wh is None:
+            raise SessionError(path, "cannot decode image (its header is unreadable: corrupt, truncated or not an image)") from None
+        w, h = wh
+    if w <= 0 or h <= 0:
+        raise SessionError(path, f"image header claims {w} x {h} pixels")
+    if w * h > MAX_IMAGE_PIXELS:
+        raise SessionError(path, f"image header claims {w} x {h} pixels: more than the {MAX_IMAGE_PIXELS // 10**6} "
+                                 "megapixels of a camera frame")
+    return int(w), int(h)
+
+
+def _tiff_size(path: Path) -> tuple[int, int] | None:
+    """(width, height) from the first IFD of a classic TIFF, None when it is not one."""
+    try:
+        with open(path, "rb") as f:
+            head = f.read(8)
+            if head[:4] not in (b"II*\x00", b"MM\x00*"):
+                return None
+            e = "<" if head[:2] == b"II" else ">"
+            f.seek(struct.unpack(e + "I", head[4:8])[0])
+            (n,) = struct.unpack(e + "H", f.read(2))
+            tags = {}
+            for _ in range(min(n, 4096)):
+                tag, typ, _count, raw = struct.unpack(e + "HHI4s", f.read(12))
+                if tag in (256, 257):
+                    tags[tag] = struct.unpack(e + ("H" if typ == 3 else "I"), raw[:2] if typ == 3 else raw)[0]
+    except (OSError, struct.error):
+        return None
+    return (tags[256], tags[257]) if 256 in tags and 257 in tags else None
+
+
+def _check_expected(path: Path, wh: tuple[int, int], expected_wh) -> None:
+    if expected_wh is not None and tuple(int(v) for v in expected_wh) != wh:
+        raise SessionError(path, f"image is {wh[0]} x {wh[1]} but its intrinsics say {expected_wh[0]} x {expected_wh[1]}")
+
+
+def load_image(path: str | Path, expected_wh: tuple[int, int] | None = None) -> np.ndarray:
+    """Read an image file as RGB uint8 (H,W,3); greyscale is expanded to 3 channels.
+
+    The size is read from the header first and checked against ``expected_wh`` (the
+    intrinsics' width and height, when given) and MAX_IMAGE_PIXELS before any decoding.
+    """
     path = Path(path)
     if not path.is_file():
         raise SessionError(path, "image file not found")
@@ -25,19 +85,20 @@ def load_image(path: str | Path) -> np.ndarray:
         raise SessionError(path, "image file is empty (0 bytes)")
     if size > MAX_IMAGE_BYTES:
         raise SessionError(path, f"image file is {size / 2**20:.0f} MiB: too large to be a camera frame")
-    data = np.fromfile(path, dtype=np.uint8)
-    if data[:8].tobytes() == b"\x89PNG\r\n\x1a\n":
-        if data[-4096:].tobytes().rfind(b"IEND") < 0:
-            raise SessionError(path, "PNG file is truncated (no IEND chunk at its end)")
-        w, h = (int.from_bytes(data[i:i + 4].tobytes(), "big") for i in (16, 20))
-        if w * h > MAX_IMAGE_PIXELS:  # a decompression bomb, or not a camera frame
-            raise SessionError(path, f"PNG claims {w} x {h} pixels: too large to be a camera frame")
+    wh = read_image_header(path)
+    _check_expected(path, wh, expected_wh)
+    with open(path, "rb") as f:
+        data = np.frombuffer(f.read(MAX_IMAGE_BYTES + 1), dtype=np.uint8)
+    if data[:8].tobytes() == b"\x89PNG\r\n\x1a\n" and data[-4096:].tobytes().rfind(b"IEND") < 0:
+        raise SessionError(path, "PNG file is truncated (no IEND chunk at its end)")
     try:
         img = cv2.imdecode(data, cv2.IMREAD_UNCHANGED)
     except cv2.error:
         img = None
     if img is None:
         raise SessionError(path, "cannot decode image (corrupt, truncated or not an image)")
+    if (img.shape[1], img.shape[0]) != wh:
+        raise SessionError(path, f"image header says {wh[0]} x {wh[1]} but the pixels are {img.shape[1]} x {img.shape[0]}")
     return _to_rgb8(path, img)
 
 
@@ -79,9 +140,11 @@ def save_image(path: str | Path, image_rgb: np.ndarray, jpeg_quality: int = 92) 
 
 
 def image_size(path: str | Path) -> tuple[int, int]:
-    """(width, height) of an image file (decodes it)."""
-    img = load_image(path)
-    return img.shape[1], img.shape[0]
+    """(width, height) of an image file, from its header."""
+    path = Path(path)
+    if not path.is_file():
+        raise SessionError(path, "image file not found")
+    return read_image_header(path)
 
 
 def list_frames(path: str | Path) -> list[Path]:
@@ -93,7 +156,7 @@ def list_frames(path: str | Path) -> list[Path]:
 
 
 def load_video_frames(path: str | Path, start_s: float = 0.0, end_s: float | None = None,
-                      max_frames: int = 60) -> list[np.ndarray]:
+                      max_frames: int = 60, expected_wh=None) -> list[np.ndarray]:
     """Decode up to ``max_frames`` RGB frames evenly spread over [start_s, end_s] of a video."""
     path = Path(path)
     if not path.is_file():
@@ -102,6 +165,11 @@ def load_video_frames(path: str | Path, start_s: float = 0.0, end_s: float | Non
     try:
         if not cap.isOpened():
             raise SessionError(path, "cannot open video (corrupt or unsupported codec)")
+        vw, vh = int(cap.get(cv2.CAP_PROP_FRAME_WIDTH) or 0), int(cap.get(cv2.CAP_PROP_FRAME_HEIGHT) or 0)
+        if vw * vh > MAX_IMAGE_PIXELS:
+            raise SessionError(path, f"video frames are {vw} x {vh} pixels: more than a camera frame")
+        if vw and vh:
+            _check_expected(path, (vw, vh), expected_wh)
         fps = cap.get(cv2.CAP_PROP_FPS)
         fps = fps if np.isfinite(fps) and 0 < fps < 10_000 else 25.0  # some containers report 0 or NaN
         n = cap.get(cv2.CAP_PROP_FRAME_COUNT)
@@ -118,6 +186,8 @@ def load_video_frames(path: str | Path, start_s: float = 0.0, end_s: float | Non
             cap.set(cv2.CAP_PROP_POS_FRAMES, int(i))
             ok, bgr = cap.read()
             if ok:
+                if expected_wh is not None:
+                    _check_expected(path, (bgr.shape[1], bgr.shape[0]), expected_wh)
                 frames.append(cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB))
         if not frames:
             raise SessionError(path, "no frame of the video could be decoded")
@@ -126,14 +196,17 @@ def load_video_frames(path: str | Path, start_s: float = 0.0, end_s: float | Non
         cap.release()
 
 
-def load_background_frames(path: str | Path, **video_window) -> list[np.ndarray]:
-    """Background frames from a folder of images, one image, or a video file."""
+def load_background_frames(path: str | Path, expected_wh=None, **video_window) -> list[np.ndarray]:
+    """Background frames from a folder of images (evenly sampled down to MAX_BACKGROUND_FILES),
+    one image, or a video file; each checked against ``expected_wh`` before decoding."""
     path = Path(path)
     if path.is_dir():
         files = list_frames(path)
         if not files:
             raise SessionError(path, "background folder holds no images")
-        return [load_image(f) for f in files]
+        if len(files) > MAX_BACKGROUND_FILES:
+            files = [files[i] for i in np.unique(np.linspace(0, len(files) - 1, MAX_BACKGROUND_FILES).round().astype(int))]
+        return [load_image(f, expected_wh) for f in files]
     if path.suffix.lower() in VIDEO_SUFFIXES:
-        return load_video_frames(path, **video_window)
-    return [load_image(path)]
+        return load_video_frames(path, expected_wh=expected_wh, **video_window)
+    return [load_image(path, expected_wh)]
