@@ -370,7 +370,7 @@ class WorkbenchState:
         path = calibration_path(s)
         with self.lock:
             self._same_session(session)
-            save_calibration(path, result)
+            save_calibration(path, result, root=s.root)
             self.calibration = result
             self.cal_version += 1
             self.version += 1

@@ -17,6 +17,7 @@ from pathlib import Path
 
 from calib_core.errors import SessionError, short_repr
 from calib_core.io.atomic import atomic_write_yaml
+from calib_core.io.confine import confine_write
 from calib_core.io.yaml_safe import read_yaml_mapping
 
 DETECTIONS_FORMAT = "sonar-camera-detections/1"
@@ -93,7 +94,8 @@ def save_detections(session, detections: dict) -> None:
     """Write detections.yaml atomically (captures in manifest order)."""
     order = [c.id for c in session.captures]
     caps = {cid: detections[cid] for cid in order if cid in detections and detections[cid]}
-    atomic_write_yaml(detections_path(session), {"format": DETECTIONS_FORMAT, "captures": _plain(caps)})
+    path = confine_write(session.root, detections_path(session))
+    atomic_write_yaml(path, {"format": DETECTIONS_FORMAT, "captures": _plain(caps)})
 
 
 def _plain(x):

@@ -303,6 +303,9 @@ def write_report(session, out_path: str | Path, calibration: dict | None, detect
     """Build the report and write it atomically to ``out_path``; returns the path."""
     from calib_core.io.atomic import atomic_write_text
 
+    from calib_core.io.confine import confine_write
+
+    confine_write(session.root, out_path, explicit=True)  # inside the session: no symlink out of it
     html = build_report(session, calibration, detections, progress, options, calibration_note)
     atomic_write_text(out_path, html)
     return Path(out_path)

@@ -7,6 +7,7 @@ from pathlib import Path
 
 from calib_core.errors import SessionError, short_repr
 from calib_core.io.atomic import atomic_write_json
+from calib_core.io.confine import confine_write
 
 CALIBRATION_FORMAT = "sonar-camera-calibration/1"
 
@@ -15,10 +16,15 @@ def calibration_path(session) -> Path:
     return Path(session.root) / "results" / "calibration.json"
 
 
-def save_calibration(path: str | Path, result: dict) -> None:
-    """Write a calibration result dict atomically (must carry the contract's keys)."""
+def save_calibration(path: str | Path, result: dict, root=None, explicit: bool = False) -> None:
+    """Write a calibration result dict atomically (must carry the contract's keys).
+
+    With ``root`` (the session folder) the path is confined to it first
+    (:func:`calib_core.io.confine.confine_write`)."""
     if result.get("format") != CALIBRATION_FORMAT or "cameras" not in result:
         raise ValueError("calibration result lacks the contract keys 'format' and 'cameras'")
+    if root is not None:
+        confine_write(root, path, explicit=explicit)
     atomic_write_json(path, result)
 
 

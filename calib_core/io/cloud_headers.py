@@ -151,6 +151,10 @@ def _check_pcd(path: Path, head: bytes) -> int:
         if len(sizes_raw) < 8:
             raise SessionError(path, "file is truncated: compressed PCD data is missing")
         compressed = int.from_bytes(sizes_raw[:4], "little")
+        uncompressed = int.from_bytes(sizes_raw[4:], "little")
+        if uncompressed != n * sum(s * c for s, c in zip(sizes, counts)):
+            raise SessionError(path, f"PCD header is corrupt: {n} points need {n * sum(s * c for s, c in zip(sizes, counts))} "
+                                     f"bytes unpacked, the data block says {uncompressed}")
         if size < header_len + 8 + compressed:
             raise SessionError(path, f"file is truncated: {size} bytes, its header needs at least {header_len + 8 + compressed}")
     elif kind == "ascii":
