@@ -58,21 +58,27 @@ def escape_md_code(text) -> str:
     return escape_html(text).replace("`", "&#x60;")
 
 
+def plain_line(text) -> str:
+    """One line of plain text (for comments in exported files): no newlines, no control characters."""
+    return _visible(text)
+
+
 _ROS_BAD = re.compile(r"[^A-Za-z0-9_]+")
 
 
 def ros_frame_id(name) -> str:
-    """A valid ROS frame id (``[A-Za-z_][A-Za-z0-9_]*``) from any name.
+    """A valid ROS frame id from any name: segments ``[A-Za-z_][A-Za-z0-9_]*`` joined by
+    ``/`` (a tf prefix such as ``robot/sonar`` is kept; no leading ``/``).
 
     Accents are folded ("Kamera ü 1" -> "Kamera_u_1"), every other run of characters
-    outside the set becomes one underscore, and a leading digit gets a ``f_`` prefix.
-    Never empty.
+    outside the set becomes one underscore, and a segment starting with a digit gets an
+    ``f_`` prefix. Never empty.
     """
     text = unicodedata.normalize("NFKD", _visible(name))
     text = "".join(ch for ch in text if not unicodedata.combining(ch))
-    text = _ROS_BAD.sub("_", text).strip("_")[:100]
-    if not text:
-        return "frame"
-    if text[0].isdigit():
-        text = "f_" + text
-    return text
+    segments = []
+    for part in text.split("/"):
+        part = _ROS_BAD.sub("_", part).strip("_")[:100]
+        if part:
+            segments.append("f_" + part if part[0].isdigit() else part)
+    return "/".join(segments) or "frame"
