@@ -18,6 +18,7 @@ from app.guard import ConnectionGuard, new_token, start_guarded
 from app.uploads import UploadStore, port_taken_warning, release_session_lock
 from app.state import WorkbenchState
 from calib_core.errors import SessionError
+from calib_core.markup import escape_md
 
 log = logging.getLogger("sonarcal.app")
 
@@ -154,8 +155,8 @@ class Workbench:
     def _on_session(self) -> None:
         s = self.state.session
         if s is not None:
-            self.title.content = (f"**sonarcal workbench**: `{s.name}` ({len(s.captures)} captures, "
-                                  f"cameras {', '.join(s.cameras)})")
+            self.title.content = (f"**sonarcal workbench**: {escape_md(s.name)} ({len(s.captures)} captures, "
+                                  f"cameras {escape_md(', '.join(s.cameras))})")
         for w in self.state.warnings:
             notify(self.server, None, "Session warning", w, color="yellow")
         self.images.rebuild()
@@ -185,7 +186,7 @@ class Workbench:
             self.solve.job_finished(name)
             return
         self.progress.value = float(min(max(pct, 0.0), 100.0))
-        self.progress_label.content = f"{name}: {label}"
+        self.progress_label.content = escape_md(f"{name}: {label}")
         self.progress.visible = True
         self.progress_label.visible = True
 

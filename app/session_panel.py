@@ -10,6 +10,7 @@ from app.upload_stream import UploadReceiver
 from app.uploads import MAX_UPLOAD_BYTES, safe_unpack_zip, upload_limit_text
 from calib_core.detections import detections_path
 from calib_core.errors import SessionError
+from calib_core.markup import escape_md
 from calib_core.results import calibration_path
 
 
@@ -71,13 +72,14 @@ class SessionPanel:
         if s is None:
             return
         cal = self.wb.state.calibration
-        lines = [f"**{s.name}**", f"- folder: `{s.root}`", f"- sphere diameter: {s.sphere_diameter_m * 1000:.1f} mm",
-                 f"- sonar: {s.sonar_model or '-'}; sound speed {s.sound_speed_m_s or '-'} m/s",
-                 f"- cameras: {', '.join(s.cameras)}; captures: {len(s.captures)}",
+        lines = [f"**{escape_md(s.name)}**", f"- folder: {escape_md(s.root)}",
+                 f"- sphere diameter: {s.sphere_diameter_m * 1000:.1f} mm",
+                 f"- sonar: {escape_md(s.sonar_model or '-')}; sound speed {s.sound_speed_m_s or '-'} m/s",
+                 f"- cameras: {escape_md(', '.join(s.cameras))}; captures: {len(s.captures)}",
                  f"- ground truth: {'yes (magenta in 3D)' if self.wb.state.ground_truth else 'no'}",
                  f"- calibration: {'results/calibration.json' if cal else 'none yet'}"]
         if s.measured_m:
-            lines.append("- measured: " + json.dumps(s.measured_m))
+            lines.append("- measured: " + escape_md(json.dumps(s.measured_m, ensure_ascii=False)))
         self.info.content = "\n".join(lines)
         if not self.path.value:
             self.path.value = str(s.root)

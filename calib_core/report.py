@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import datetime as _dt
 import math
-from html import escape
 from pathlib import Path
 
 import numpy as np
@@ -23,6 +22,7 @@ from scipy.spatial.transform import Rotation
 
 from calib_core import __version__
 from calib_core.errors import SessionError
+from calib_core.markup import escape_html
 from calib_core.report_captures import CaptureView, ReportOptions, calibrated_T, capture_view, range_scale
 from calib_core.report_svg import bar_chart, scatter_residuals, sigma_chart
 
@@ -40,7 +40,7 @@ figcaption{font-size:12px;color:#555}img{max-width:100%;border:1px solid #ccc}.h
 
 
 def _e(x) -> str:
-    return escape(str(x))
+    return escape_html(x)
 
 
 def _fmt(v, fmt: str = ".2f", none: str = "-") -> str:
