@@ -28,7 +28,8 @@ OPERATOR_STATUSES = ("accepted", "corrected", "rejected")
 
 
 def detections_path(session) -> Path:
-    return Path(session.root) / DETECTIONS_FILE
+    """The session's detections.yaml; refused (SessionError) when it is a symlink out of the session."""
+    return confine_write(session.root, Path(session.root) / DETECTIONS_FILE)
 
 
 def load_detections(session) -> dict:

@@ -13,7 +13,9 @@ CALIBRATION_FORMAT = "sonar-camera-calibration/1"
 
 
 def calibration_path(session) -> Path:
-    return Path(session.root) / "results" / "calibration.json"
+    """``results/calibration.json`` of the session; refused (SessionError) when a symlink
+    on the way leads out of the session folder."""
+    return confine_write(session.root, Path(session.root) / "results" / "calibration.json")
 
 
 def save_calibration(path: str | Path, result: dict, root=None, explicit: bool = False) -> None:

@@ -341,11 +341,11 @@ def validate_session(folder: str | Path) -> SessionCheck:
         problems.append(e)
     from calib_core.results import calibration_path, load_calibration
 
-    if calibration_path(session).exists():
-        try:
+    try:
+        if calibration_path(session).exists():
             load_calibration(calibration_path(session))
-        except SessionError as e:
-            problems.append(e)
+    except SessionError as e:
+        problems.append(e)
     return SessionCheck(session, problems, models, points)
 
 

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import contextlib
+import io
 import signal
 import threading
 
@@ -31,8 +33,9 @@ def run(args) -> int:
     load_session(args.session)  # a bad session fails here, as one line, before any server starts
     from app.server import Workbench
 
-    wb = Workbench(args.session, host=args.host, port=args.port, allowed_roots=args.allow_root,
-                   token=None if getattr(args, "no_token", False) else "auto")
+    with contextlib.redirect_stdout(io.StringIO()):  # viser's own banner shows the URL without the token
+        wb = Workbench(args.session, host=args.host, port=args.port, allowed_roots=args.allow_root,
+                       token=None if getattr(args, "no_token", False) else "auto")
     local = args.host in ("127.0.0.1", "localhost", "::1")
     if wb.port_warning:
         console.print(f"[yellow]{wb.port_warning}[/yellow]", markup=True, highlight=False)

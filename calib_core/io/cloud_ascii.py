@@ -56,7 +56,7 @@ def _rows(path: Path, offset: int, skip: int, n: int, ncols: int) -> np.ndarray:
 
 def _short(e: Exception) -> str:
     text = str(e).splitlines()[0] if str(e) else type(e).__name__
-    return text[:100]
+    return text.split(";")[0].rstrip(". ")[:100]
 
 
 def read_ascii_ply(path: Path):

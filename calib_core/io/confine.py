@@ -37,6 +37,6 @@ def confine_write(root, path, explicit: bool = False) -> Path:
     except (OSError, RuntimeError):
         raise SessionError(p, "cannot resolve the output path (symlink loop or bad name)") from None
     if not _inside(root_r, parent) or not _inside(root_r, final) or final == root_r:
-        raise SessionError(p, f"refusing to write outside the session folder {root_r} (a symlink on the way "
-                              "leads elsewhere)")
+        raise SessionError(p, f"refused: this path leads outside the session folder {root_r} (through a symlink "
+                              "or '..')")
     return p

@@ -22,7 +22,7 @@ from yaml.resolver import Resolver
 
 from calib_core.errors import SessionError
 
-MAX_YAML_BYTES = 20 * 1024 * 1024
+MAX_YAML_BYTES = 20_000_000
 MAX_DEPTH = 64
 MAX_ALIASES = 100_000  # our own saves never write aliases; other tools may
 MAX_EXPANDED_NODES = 2_000_000  # only documents with aliases are expanded (others are trees already)
