@@ -16,6 +16,7 @@ import stat
 import tempfile
 import threading
 import zipfile
+import zlib
 from pathlib import Path, PurePosixPath
 
 from calib_core.errors import SessionError
@@ -109,10 +110,10 @@ def safe_unpack_zip(data, dest_parent: Path, label: str = "upload.zip",
                         raise SessionError(where, f"archive unpacks to more than {mb_text(max_unpacked_bytes)}")
                     dst.write(chunk)
         return _find_session_root(out, where)
-    except BaseException:
+    except (FileExistsError, NotADirectoryError, IsADirectoryError):
         shutil.rmtree(out, ignore_errors=True)
-        raise
-    except (zipfile.BadZipFile, zipfile.LargeZipFile, EOFError, NotImplementedError, ValueError) as e:
+        raise SessionError(where, "archive holds the same path twice, or a file where a folder should be") from None
+    except (zipfile.BadZipFile, zipfile.LargeZipFile, EOFError, NotImplementedError, ValueError, zlib.error) as e:
         shutil.rmtree(out, ignore_errors=True)
         raise SessionError(where, f"corrupt or unsupported zip archive ({type(e).__name__})") from None
     except BaseException:

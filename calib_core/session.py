@@ -13,6 +13,7 @@ Extensions to the contract (all optional):
 
 from __future__ import annotations
 
+import datetime
 import math
 import re
 from dataclasses import dataclass, field
@@ -241,6 +242,8 @@ def _plain_text(manifest: Path, value, what: str, default: str) -> str:
     """A free-text field: a string or number of at most 200 characters (never str() of a tree)."""
     if value is None or value == "":
         return default
+    if isinstance(value, (datetime.date, datetime.datetime)):
+        value = value.isoformat()  # YAML reads an unquoted 2026-05-01 as a date
     if isinstance(value, bool) or not isinstance(value, (str, int, float)):
         raise SessionError(manifest, f"{what} must be text, got a {type(value).__name__}")
     text = value if isinstance(value, str) else repr(value)

@@ -137,6 +137,19 @@ def _las_header(n_points: int, n_vlr: int = 0, offset: int = 227, rec_len: int =
     return bytes(h) + bytes(4096 - 227)
 
 
+def _las14_evlr_bomb() -> bytes:
+    h = bytearray(375)
+    h[0:4], h[24], h[25] = b"LASF", 1, 4
+    struct.pack_into("<HII", h, 94, 375, 375, 0)
+    struct.pack_into("<BHI", h, 104, 6, 30, 1)
+    struct.pack_into("<ddd", h, 131, 1e-3, 1e-3, 1e-3)
+    struct.pack_into("<QI", h, 235, 375 + 30, 1)
+    struct.pack_into("<Q", h, 247, 1)
+    evlr = bytearray(60)
+    struct.pack_into("<Q", evlr, 20, 2**62)
+    return bytes(h) + bytes(30) + bytes(evlr)
+
+
 def _npy_claiming(shape) -> bytes:
     buf = io.BytesIO()
     np.lib.format.write_array_header_1_0(buf, {"descr": "<f8", "fortran_order": False, "shape": shape})
@@ -250,6 +263,10 @@ CASES: dict[str, Case] = {
                                 "txt.pcd"),
     "compressed PCD with a lying size": Case(lambda r, _: _set_cloud(
         r, "lz.pcd", _pcd("binary_compressed", 100, struct.pack("<II", 16, 2**31) + bytes(16))), "lz.pcd"),
+    "PCD with SIZE 0 fields": Case(lambda r, _: _set_cloud(r, "z.pcd", _pcd("binary", 10**8, b"").replace(
+        b"SIZE 4 4 4", b"SIZE 0 0 0")), "z.pcd"),
+    "LAS 1.4 with an extended VLR claiming 2**62 bytes": Case(lambda r, _: _set_cloud(r, "evlr.las", _las14_evlr_bomb()),
+                                                             "evlr.las"),
     ".npy with a huge shape": Case(lambda r, _: _set_cloud(r, "huge.npy", _npy_claiming((10**12, 3))), "huge.npy"),
     "text cloud that is one endless line": Case(lambda r, _: _set_cloud(r, "line.xyz", b"1 " * 400_000), "line.xyz"),
     # symlinks and writes outside the session
@@ -434,6 +451,9 @@ def test_non_ascii_names_keep_working(tmp_path):
     root = build_session(tmp_path, n_captures=2, cameras=("cam1",))
     _edit_manifest(root, lambda d: d.update(name="Sitzung über Wasser"))
     assert load_session(root).name == "Sitzung über Wasser"
+    (root / "session.yaml").write_text((root / "session.yaml").read_text().replace(
+        "name: Sitzung über Wasser", "name: 2026-05-01"))
+    assert load_session(root).name == "2026-05-01"
     cal = {"format": "sonar-camera-calibration/1", "cameras": {"Kamera ü 1": {"T_cam_sonar": np.eye(4).tolist()}}}
     text = to_tf_static(cal, frames=FrameNames())
     assert "Kamera_u_1_optical_frame" in text and "# Kamera ü 1:" in text
@@ -454,7 +474,7 @@ def _zip_bytes(entries: dict[str, bytes], symlink: str | None = None) -> bytes:
     return buf.getvalue()
 
 
-@pytest.mark.parametrize("kind", ["bomb", "symlink", "dotdot", "absolute", "not a zip"])
+@pytest.mark.parametrize("kind", ["bomb", "symlink", "dotdot", "absolute", "not a zip", "duplicate", "file as folder"])
 def test_hostile_zips_are_refused_and_leave_nothing(tmp_path, kind):
     from app.uploads import safe_unpack_zip
     from calib_core.errors import SessionError
@@ -464,7 +484,9 @@ def test_hostile_zips_are_refused_and_leave_nothing(tmp_path, kind):
             "symlink": _zip_bytes({"session.yaml": b"a: 1"}, symlink="/etc/passwd"),
             "dotdot": _zip_bytes({"../evil.txt": b"x"}),
             "absolute": _zip_bytes({"/tmp/evil.txt": b"x"}),
-            "not a zip": b"PK\x03\x04" + os.urandom(2000)}[kind]
+            "not a zip": b"PK\x03\x04" + os.urandom(2000),
+            "duplicate": _zip_bytes({"session.yaml": b"a: 1"}) if kind != "duplicate" else _dup_zip(),
+            "file as folder": _zip_bytes({"session.yaml": b"a: 1", "a": b"x", "a/b": b"y"})}[kind]
     zpath.write_bytes(data)
     dest = tmp_path / "uploads"
     with pytest.raises(SessionError) as ei:
@@ -472,6 +494,18 @@ def test_hostile_zips_are_refused_and_leave_nothing(tmp_path, kind):
     assert "up.zip" in str(ei.value)
     assert not dest.exists() or not any(dest.iterdir())
     assert not (tmp_path / "evil.txt").exists()
+
+
+def _dup_zip() -> bytes:
+    import warnings
+
+    buf = io.BytesIO()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        with zipfile.ZipFile(buf, "w") as zf:
+            zf.writestr("session.yaml", b"a: 1")
+            zf.writestr("session.yaml", b"a: 2")
+    return buf.getvalue()
 
 
 class _FakeWs:

@@ -134,7 +134,8 @@ def _check_pcd(path: Path, head: bytes) -> int:
             n = int(fields["WIDTH"][0]) * int(fields.get("HEIGHT", ["1"])[0])
     except (KeyError, ValueError, IndexError):
         raise SessionError(path, "PCD header is malformed (FIELDS/SIZE/COUNT/POINTS)") from None
-    if len(sizes) != len(names) or len(counts) != len(names) or n < 0:
+    if len(sizes) != len(names) or len(counts) != len(names) or n < 0 or \
+            any(s not in (1, 2, 4, 8) for s in sizes) or any(c < 1 or c > 4096 for c in counts):
         raise SessionError(path, "PCD header is malformed (FIELDS, SIZE and COUNT disagree)")
     if not {"x", "y", "z"} <= set(names):
         raise SessionError(path, f"PCD file has no x y z fields (fields: {' '.join(names)})")

@@ -53,7 +53,22 @@ def check_las_header(path: Path) -> int:
         evlr_start, n_evlr = struct.unpack_from("<QI", head, 235)
         if n_evlr and (evlr_start > size or n_evlr * 60 > size - evlr_start):
             raise SessionError(path, f"LAS header is corrupt: {n_evlr} extended VLRs do not fit the file")
+        _check_evlrs(path, evlr_start, n_evlr, size)
     return int(n)
+
+
+def _check_evlrs(path: Path, start: int, count: int, size: int) -> None:
+    """Each extended VLR declares a 64-bit length: they must all fit in the file."""
+    pos = start
+    with open(path, "rb") as f:
+        for _ in range(count):
+            f.seek(pos + 20)
+            raw = f.read(8)
+            if len(raw) < 8:
+                raise SessionError(path, "LAS file is truncated inside its extended VLRs")
+            pos += 60 + struct.unpack("<Q", raw)[0]
+            if pos > size:
+                raise SessionError(path, "LAS header is corrupt: an extended VLR claims more bytes than the file holds")
 
 
 def check_npy_header(path: Path) -> None:
