@@ -311,6 +311,12 @@ def _relink_results(root: Path, outside: Path) -> None:
     os.symlink(outside, root / "results")
 
 
+def _child_env() -> dict:
+    """The child imports this checkout's code, whatever the caller's PYTHONPATH."""
+    here = str(Path(__file__).resolve().parents[1])
+    return dict(os.environ, COLUMNS="200", PYTHONPATH=os.pathsep.join([here, os.environ.get("PYTHONPATH", "")]))
+
+
 def _prepare(name: str, case: Case, base: Path) -> dict:
     parent = base / name.replace(" ", "_").replace("/", "_")
     root = build_session(parent, n_captures=3, cameras=("cam1",), detections=False)
@@ -331,7 +337,7 @@ def results(tmp_path_factory):
     prepared = [_prepare(name, case, base) for name, case in CASES.items()]
     (base / "cases.json").write_text(json.dumps([{k: p[k] for k in ("name", "argv", "cwd")} for p in prepared]))
     r = subprocess.run([sys.executable, str(LAUNCHER), str(base / "cases.json"), str(base / "results.json")],
-                       capture_output=True, text=True, timeout=600, env=dict(os.environ, COLUMNS="200"), cwd=base)
+                       capture_output=True, text=True, timeout=600, env=_child_env(), cwd=base)
     assert r.returncode == 0, r.stderr[-3000:]
     out = json.loads((base / "results.json").read_text())
     for p in prepared:
@@ -612,7 +618,7 @@ def test_serve_cleans_up_on_sigterm_and_warns_on_a_taken_port(tmp_path):
     blocker.bind(("127.0.0.1", 0))
     blocker.listen(1)
     port = blocker.getsockname()[1]
-    env = dict(os.environ, TMPDIR=str(tmp_path / "tmp"), COLUMNS="250")
+    env = dict(_child_env(), TMPDIR=str(tmp_path / "tmp"), COLUMNS="250")
     (tmp_path / "tmp").mkdir()
     proc = subprocess.Popen([sys.executable, "-m", "sonarcal_cli.main", "serve", str(root), "--port", str(port)],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
