@@ -10,6 +10,7 @@ from calib_core.io.atomic import atomic_write_json
 from calib_core.io.confine import confine_write
 
 CALIBRATION_FORMAT = "sonar-camera-calibration/1"
+MAX_CALIBRATION_BYTES = 50_000_000
 
 
 def calibration_path(session) -> Path:
@@ -38,6 +39,9 @@ def load_calibration(path: str | Path) -> dict:
     if not path.is_file():
         raise SessionError(path, "calibration file not found (run 'sonarcal calibrate' first)")
     try:
+        size = path.stat().st_size
+        if size > MAX_CALIBRATION_BYTES:
+            raise SessionError(path, f"calibration file is {size / 1e6:.0f} MB: far more than a calibration holds")
         data = json.loads(path.read_text(encoding="utf-8-sig"))
     except (UnicodeDecodeError, json.JSONDecodeError) as e:
         raise SessionError(path, f"invalid JSON ({e})") from None

@@ -234,6 +234,12 @@ CASES: dict[str, Case] = {
     "alias bomb in detections (info)": Case(lambda r, _: _detections_with_extra(r, billion_laughs()), "detections.yaml"),
     "deep nesting in detections": Case(lambda r, _: _detections_with_extra(r, "x: " + "[" * 50000 + "]" * 50000 + "\n"),
                                        "detections.yaml", "detect"),
+    "calibration.json of 100 MB": Case(lambda r, _: (_write_calibration(r), open(r / "results" / "calibration.json",
+                                                                                  "ab").truncate(100 * 10**6)),
+                                       "calibration.json", "export --format json"),
+    "calibration.json nested 100k deep": Case(lambda r, _: (_write_calibration(r), (r / "results" / "calibration.json")
+                                                            .write_text("[" * 100000 + "]" * 100000)),
+                                              "calibration.json", "export --format json"),
     "session.yaml of 100 MB": Case(lambda r, _: open(r / "session.yaml", "ab").truncate(100 * 2**20), "session.yaml"),
     # image headers
     "JPEG claiming 30000 x 30000": Case(lambda r, _: _set_image(r, "big.jpg", _jpeg_claiming(30000, 30000)), "big.jpg"),
