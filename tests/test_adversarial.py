@@ -229,6 +229,13 @@ CASES: dict[str, Case] = {
         "cam1.yaml"),
     "deep nesting in intrinsics": Case(lambda r, _: (r / "intrinsics" / "cam1.yaml").write_text(
         "camera_matrix: " + "[" * 50000 + "]" * 50000 + "\n"), "cam1.yaml"),
+    "OpenCV YAML intrinsics nested 50k deep": Case(lambda r, _: (r / "intrinsics" / "cam1.yaml").write_text(
+        "%YAML:1.0\n---\ncamera_matrix: " + "[" * 50000 + "]" * 50000 + "\n"), "cam1.yaml"),
+    "OpenCV YAML intrinsics indented 3000 deep": Case(lambda r, _: (r / "intrinsics" / "cam1.yaml").write_text(
+        "%YAML:1.0\n---\n" + "".join(" " * i + f"k{i}:\n" for i in range(3000)) + " " * 3000 + "x: 1\n"), "cam1.yaml"),
+    "OpenCV XML intrinsics nested 50k deep": Case(lambda r, _: (r / "intrinsics" / "cam1.yaml").write_text(
+        '<?xml version="1.0"?>\n<opencv_storage>' + "<a>" * 50000 + "</a>" * 50000 + "</opencv_storage>\n"),
+        "cam1.yaml"),
     "alias bomb in detections extra key (detect)": Case(
         lambda r, _: _detections_with_extra(r, billion_laughs()), "detections.yaml", "detect"),
     "alias bomb in detections (info)": Case(lambda r, _: _detections_with_extra(r, billion_laughs()), "detections.yaml"),

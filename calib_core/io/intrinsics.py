@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 import cv2
@@ -36,6 +37,7 @@ def load_intrinsics(path: str | Path) -> CameraModel:
         raise SessionError(path, "not a text file (invalid UTF-8): expected ROS camera_info YAML") from None
     head = text.lstrip()
     if head.startswith("%YAML:") or "!!opencv-matrix" in text or head.startswith("<?xml"):
+        check_storage_depth(path, text)  # OpenCV's parsers recurse on the C stack: a deep file crashes them
         return _load_opencv_storage(path)
     data = parse_yaml_checked(path, text)
     if not isinstance(data, dict):
@@ -102,6 +104,42 @@ def _from_ros(path: Path, data: dict) -> CameraModel:
         dist = dist[:5]
     _check_K(path, K, w, h)
     return CameraModel(w, h, K, dist, name=_camera_name(path, data.get("camera_name")))
+
+
+MAX_STORAGE_DEPTH = 32
+_XML_TAG = re.compile(r"<(/?)[A-Za-z_][^<>]*?(/?)>")
+
+
+def check_storage_depth(path: Path, text: str) -> None:
+    """Refuse an OpenCV FileStorage text nested deeper than MAX_STORAGE_DEPTH (XML tags, or
+    YAML flow brackets plus block indentation and '- ' markers), before OpenCV parses it."""
+    depth = 0
+    if text.lstrip().startswith("<"):
+        for m in _XML_TAG.finditer(text):
+            if m.group(2):
+                continue  # <empty/>
+            depth += -1 if m.group(1) else 1
+            if depth > MAX_STORAGE_DEPTH:
+                break
+    else:
+        flow, indents = 0, []
+        for line in text.splitlines():
+            body = line.lstrip(" ")
+            if not body or body.startswith("#"):
+                continue
+            indent = len(line) - len(body)
+            while indents and indents[-1] >= indent:
+                indents.pop()
+            indents.append(indent)
+            dashes = len(re.match(r"(-\s+)*", body).group(0).split("-")) - 1
+            for ch in body:
+                flow += 1 if ch in "[{" else -1 if ch in "]}" else 0
+                depth = max(depth, flow + len(indents) + dashes)
+            depth = max(depth, len(indents) + dashes)
+            if depth > MAX_STORAGE_DEPTH:
+                break
+    if depth > MAX_STORAGE_DEPTH:
+        raise SessionError(path, f"cannot parse OpenCV FileStorage file: nested more than {MAX_STORAGE_DEPTH} levels deep")
 
 
 def _load_opencv_storage(path: Path) -> CameraModel:
