@@ -71,7 +71,7 @@ class SessionData:
                 start, end = spec.background_window_s
                 model = self.camera(cam)
                 frames = load_background_frames(spec.background_path, (model.width_px, model.height_px),
-                                                start_s=start, end_s=end)
+                                                root=self.session.root, start_s=start, end_s=end)
                 _check_image_size(spec.background_path, frames[0], self.camera(cam))
                 self.backgrounds[cam] = prepare_background(background_model(frames, how="median"))
         return self.backgrounds[cam]

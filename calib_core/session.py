@@ -319,7 +319,7 @@ def validate_session(folder: str | Path) -> SessionCheck:
             try:
                 start, end = spec.background_window_s
                 wh = (models[name].width_px, models[name].height_px) if name in models else None
-                frames = load_background_frames(spec.background_path, wh, start_s=start, end_s=end)
+                frames = load_background_frames(spec.background_path, wh, root=session.root, start_s=start, end_s=end)
                 if name in models:
                     _check_size(spec.background_path, frames[0], models[name], problems)
             except SessionError as e:

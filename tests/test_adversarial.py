@@ -704,3 +704,18 @@ def test_tokenless_or_cross_origin_clients_read_and_change_nothing(tmp_path):
         ws.close()
     finally:
         wb.stop()
+
+
+def test_background_symlink_out_and_opencv_cap(tmp_path):
+    from calib_core.errors import SessionError
+    from calib_core.io.images import load_background_frames
+    from calib_core.session import validate_session
+
+    root = build_session(tmp_path, n_captures=2, cameras=("cam1",), background=True)
+    outside = tmp_path / "secret.png"
+    outside.write_bytes((root / "backgrounds" / "cam1" / "bg0.png").read_bytes())
+    os.symlink(outside, root / "backgrounds" / "cam1" / "bg2.png")
+    with pytest.raises(SessionError, match="leaves the session"):
+        load_background_frames(root / "backgrounds" / "cam1", root=root)
+    assert any("bg2.png" in str(p) for p in validate_session(root).problems)
+    assert os.environ.get("OPENCV_IO_MAX_IMAGE_PIXELS") == "40000000"  # set when calib_core is imported

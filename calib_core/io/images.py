@@ -8,10 +8,10 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from calib_core import MAX_IMAGE_PIXELS  # 7680 x 5120; also OpenCV's own cap (set in calib_core/__init__)
 from calib_core.errors import SessionError
 
 MAX_IMAGE_BYTES = 200 * 2**20
-MAX_IMAGE_PIXELS = 40_000_000  # 7680 x 5120; decoded RGB at this size is 120 MB
 MAX_BACKGROUND_FILES = 100  # a background folder is sampled evenly down to this many frames
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".webp")
 VIDEO_SUFFIXES = (".mp4", ".avi", ".mov", ".mkv", ".m4v")
@@ -147,12 +147,19 @@ def image_size(path: str | Path) -> tuple[int, int]:
     return read_image_header(path)
 
 
-def list_frames(path: str | Path) -> list[Path]:
-    """Image files in a folder (sorted), or the file itself."""
+def list_frames(path: str | Path, root=None) -> list[Path]:
+    """Image files in a folder (sorted), or the file itself. With ``root`` (the session
+    folder), a file in the folder that is a symlink leading out of ``root`` is refused."""
     path = Path(path)
-    if path.is_dir():
-        return sorted(p for p in path.iterdir() if p.suffix.lower() in IMAGE_SUFFIXES and p.is_file())
-    return [path]
+    if not path.is_dir():
+        return [path]
+    files = sorted(p for p in path.iterdir() if p.suffix.lower() in IMAGE_SUFFIXES and p.is_file())
+    if root is not None:
+        root_r = Path(root).resolve()
+        for p in files:
+            if p.is_symlink() and root_r not in p.resolve().parents:
+                raise SessionError(p, "this background image is a symlink that leaves the session folder")
+    return files
 
 
 def load_video_frames(path: str | Path, start_s: float = 0.0, end_s: float | None = None,
@@ -196,12 +203,12 @@ def load_video_frames(path: str | Path, start_s: float = 0.0, end_s: float | Non
         cap.release()
 
 
-def load_background_frames(path: str | Path, expected_wh=None, **video_window) -> list[np.ndarray]:
+def load_background_frames(path: str | Path, expected_wh=None, root=None, **video_window) -> list[np.ndarray]:
     """Background frames from a folder of images (evenly sampled down to MAX_BACKGROUND_FILES),
     one image, or a video file; each checked against ``expected_wh`` before decoding."""
     path = Path(path)
     if path.is_dir():
-        files = list_frames(path)
+        files = list_frames(path, root)
         if not files:
             raise SessionError(path, "background folder holds no images")
         if len(files) > MAX_BACKGROUND_FILES:
