@@ -64,9 +64,9 @@ class ConnectionGuard:
         given = []
         query = parse_qs(urlsplit(request.path).query)
         given += query.get("token", [])
-        auth = request.headers.get("Authorization", "")
-        if auth.lower().startswith("token "):
-            given.append(auth[6:].strip())
+        for auth in request.headers.get_all("Authorization"):
+            if auth.lower().startswith("token "):
+                given.append(auth[6:].strip())
         for header in request.headers.get_all("Cookie"):
             for part in header.split(";"):
                 name, _, value = part.strip().partition("=")
@@ -75,24 +75,33 @@ class ConnectionGuard:
         return any(hmac.compare_digest(g.encode(), self.token.encode()) for g in given)
 
     def _host_ok(self, request) -> bool:
-        host = request.headers.get("Host")
-        if host is None:
+        hosts = request.headers.get_all("Host")
+        if len(hosts) != 1:
             return False
+        host = hosts[0]
         if self.token is not None or self.bind_host not in LOOPBACK_NAMES:
             return True  # the token (or the operator's choice of an open network) decides
         name, _, port = host.rpartition(":") if not host.endswith("]") else (host, "", "")
         return name in LOOPBACK_NAMES and port == str(self.port)
 
     def _origin_ok(self, request) -> bool:
-        origin = request.headers.get("Origin")
-        if origin is None:
+        origins = request.headers.get_all("Origin")
+        if not origins:
             return True  # not a browser (browsers always send Origin on a websocket handshake)
-        host = request.headers.get("Host", "")
+        if len(origins) != 1:
+            return False
+        origin, host = origins[0], request.headers.get_all("Host")[0]
         return origin.lower() in (f"http://{host}".lower(), f"https://{host}".lower())
 
     def check(self, request) -> Response | None:
         """None to let viser handle the request, or the refusal to send instead."""
-        is_ws = request.headers.get("Upgrade", "").lower() == "websocket"
+        try:
+            return self._check(request)
+        except Exception:  # a malformed request: refused, never a 500 or a traceback
+            return self._refuse(http.HTTPStatus.BAD_REQUEST, "malformed request")
+
+    def _check(self, request) -> Response | None:
+        is_ws = any(v.lower() == "websocket" for v in request.headers.get_all("Upgrade"))
         path = urlsplit(request.path).path
         if not self._host_ok(request):
             return self._refuse(http.HTTPStatus.FORBIDDEN, "unknown Host")

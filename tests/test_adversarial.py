@@ -276,6 +276,12 @@ CASES: dict[str, Case] = {
                                 "txt.pcd"),
     "compressed PCD with a lying size": Case(lambda r, _: _set_cloud(
         r, "lz.pcd", _pcd("binary_compressed", 100, struct.pack("<II", 16, 2**31) + bytes(16))), "lz.pcd"),
+    "PCD whose WIDTH disagrees with POINTS": Case(lambda r, _: _set_cloud(r, "wh.pcd", _pcd("binary", 10, bytes(120))
+                                                                           .replace(b"WIDTH 10", b"WIDTH 1000000000")),
+                                                  "wh.pcd"),
+    "binary PLY with a huge face element": Case(lambda r, _: _set_cloud(r, "faces.ply", (r / "clouds" / "p01.ply")
+                                                                        .read_bytes().replace(
+        b"end_header", b"element face 4000000000\nproperty list uchar int vertex_indices\nend_header", 1)), "faces.ply"),
     "PCD with SIZE 0 fields": Case(lambda r, _: _set_cloud(r, "z.pcd", _pcd("binary", 10**8, b"").replace(
         b"SIZE 4 4 4", b"SIZE 0 0 0")), "z.pcd"),
     "LAS 1.4 with an extended VLR claiming 2**62 bytes": Case(lambda r, _: _set_cloud(r, "evlr.las", _las14_evlr_bomb()),
@@ -719,3 +725,27 @@ def test_background_symlink_out_and_opencv_cap(tmp_path):
         load_background_frames(root / "backgrounds" / "cam1", root=root)
     assert any("bg2.png" in str(p) for p in validate_session(root).problems)
     assert os.environ.get("OPENCV_IO_MAX_IMAGE_PIXELS") == "40000000"  # set when calib_core is imported
+
+
+def test_no_token_mode_keeps_the_origin_and_host_checks(tmp_path):
+    import urllib.request
+
+    import viser
+    from websockets.sync.client import connect
+
+    from app.server import Workbench
+
+    wb = Workbench(build_session(tmp_path, n_captures=2, cameras=("cam1",)), port=0, uploads_dir=tmp_path / "up",
+                   token=None)
+    try:
+        assert wb.url == f"http://127.0.0.1:{wb.port}/" and wb.token is None
+        base, proto = f"ws://127.0.0.1:{wb.port}/", [f"viser-v{viser.__version__}"]
+        ws = connect(base, subprotocols=proto, open_timeout=10, origin=f"http://127.0.0.1:{wb.port}")
+        assert len(ws.recv(timeout=10)) > 0
+        ws.close()
+        for kw in (dict(origin="http://evil.example"), dict(additional_headers={"Host": f"evil.example:{wb.port}"})):
+            with pytest.raises(Exception, match="403"):
+                connect(base, subprotocols=proto, open_timeout=10, **kw)
+        assert urllib.request.urlopen(wb.url, timeout=10).status == 200
+    finally:
+        wb.stop()
