@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import datetime
 import math
+import unicodedata
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -247,9 +248,16 @@ def _plain_text(manifest: Path, value, what: str, default: str) -> str:
     if isinstance(value, bool) or not isinstance(value, (str, int, float)):
         raise SessionError(manifest, f"{what} must be text, got a {type(value).__name__}")
     text = value if isinstance(value, str) else repr(value)
-    if len(text) > 200 or "\x00" in text:
-        raise SessionError(manifest, f"{what} must be text of at most 200 characters without NUL")
+    if len(text) > 200 or _has_control(text):
+        raise SessionError(manifest, f"{what} must be one line of text of at most 200 characters "
+                                     "(no control characters)")
     return text
+
+
+def _has_control(text: str) -> bool:
+    """Control or format characters (newlines, ESC, bidi overrides): they would forge lines in
+    the terminal, in exported files and in tables."""
+    return any(unicodedata.category(ch) in ("Cc", "Cf") or ch in "\u2028\u2029" for ch in text)
 
 
 def _session_name(manifest: Path, value, default: str) -> str:
@@ -258,8 +266,10 @@ def _session_name(manifest: Path, value, default: str) -> str:
 
 def _check_name(manifest: Path, name: str, what: str) -> None:
     """Camera names and capture ids end up in file names (exports, thumbnails): no path tricks."""
-    if not name.strip() or name in (".", "..") or any(ch in name for ch in "/\\\x00") or len(name) > 100:
-        raise SessionError(manifest, f"{what} {short_repr(name)} is not allowed (no '/', '\\', '..', empty or over 100 characters)")
+    if not name.strip() or name in (".", "..") or any(ch in name for ch in "/\\\x00") or len(name) > 100 \
+            or _has_control(name):
+        raise SessionError(manifest, f"{what} {short_repr(name)} is not allowed (no '/', '\\', '..', control "
+                                     "characters, empty or over 100 characters)")
 
 
 def _mapping(manifest: Path, value, what: str) -> dict:

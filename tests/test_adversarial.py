@@ -224,6 +224,10 @@ CASES: dict[str, Case] = {
     "alias bomb in camera_name": Case(lambda r, _: (r / "intrinsics" / "cam1.yaml").write_text(
         billion_laughs() + (r / "intrinsics" / "cam1.yaml").read_text().replace("camera_name: cam1", "camera_name: *l9")),
         "cam1.yaml"),
+    "session name with a terminal escape": Case(lambda r, _: _edit_manifest(r, lambda d: d.update(
+        name="x\x1b]52;c;ZXZpbA==\x07\nforged line")), "session.yaml", phrase="control characters"),
+    "capture id with a newline": Case(lambda r, _: _edit_manifest(r, lambda d: d["captures"][0].update(
+        id="p01\nerror: forged")), "session.yaml", phrase="control characters"),
     "camera_name is a tree": Case(lambda r, _: (r / "intrinsics" / "cam1.yaml").write_text(
         (r / "intrinsics" / "cam1.yaml").read_text().replace("camera_name: cam1", "camera_name: {a: [1, 2]}")),
         "cam1.yaml"),

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import re
+import unicodedata
 from pathlib import Path
 
 import cv2
@@ -78,8 +79,8 @@ def _camera_name(path: Path, value) -> str:
     if isinstance(value, bool) or not isinstance(value, (str, int, float)):
         raise SessionError(path, f"camera_name must be text, got a {type(value).__name__}")
     text = value if isinstance(value, str) else repr(value)
-    if len(text) > 200:
-        raise SessionError(path, "camera_name is longer than 200 characters")
+    if len(text) > 200 or any(unicodedata.category(ch) in ("Cc", "Cf") for ch in text):
+        raise SessionError(path, "camera_name must be one line of at most 200 characters (no control characters)")
     return text
 
 
