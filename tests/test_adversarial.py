@@ -753,3 +753,14 @@ def test_no_token_mode_keeps_the_origin_and_host_checks(tmp_path):
         assert urllib.request.urlopen(wb.url, timeout=10).status == 200
     finally:
         wb.stop()
+
+
+def test_cli_tables_print_names_as_plain_text():
+    from rich.console import Console
+
+    from sonarcal_cli.ui import table
+
+    con = Console(record=True, width=200)
+    con.print(table("Captures of [/bold]x", ["capture", "[red]"], [["[/bold]p01[link=file:///etc]", "[/]"]]))
+    text = con.export_text()
+    assert "[/bold]p01[link=file:///etc]" in text and "Captures of [/bold]x" in text
