@@ -73,6 +73,27 @@ def safe_unpack_zip(data, dest_parent: Path, label: str = "upload.zip",
         zf = zipfile.ZipFile(io.BytesIO(data) if isinstance(data, (bytes, bytearray)) else data)
     except (zipfile.BadZipFile, OSError, ValueError, EOFError):
         raise SessionError(where, "not a zip archive (zip the session folder and upload the .zip)") from None
+    with zf:
+        plan = _plan(zf, where, max_files)
+        dest_parent = Path(dest_parent)
+        dest_parent.mkdir(parents=True, exist_ok=True)
+        out = Path(tempfile.mkdtemp(prefix=UPLOAD_PREFIX, dir=dest_parent)).resolve()
+        try:
+            _extract(zf, plan, out, where, max_unpacked_bytes)
+            return _find_session_root(out, where)
+        except (FileExistsError, NotADirectoryError, IsADirectoryError):
+            shutil.rmtree(out, ignore_errors=True)
+            raise SessionError(where, "archive holds the same path twice, or a file where a folder should be") from None
+        except (zipfile.BadZipFile, zipfile.LargeZipFile, EOFError, NotImplementedError, ValueError, zlib.error) as e:
+            shutil.rmtree(out, ignore_errors=True)
+            raise SessionError(where, f"corrupt or unsupported zip archive ({type(e).__name__})") from None
+        except BaseException:
+            shutil.rmtree(out, ignore_errors=True)
+            raise
+
+
+def _plan(zf: zipfile.ZipFile, where: Path, max_files: int) -> list:
+    """(entry, safe relative path) of every member; refuses symlinks, special files, encryption."""
     infos = zf.infolist()
     if len(infos) > max_files:
         raise SessionError(where, f"archive holds {len(infos)} entries; the limit is {max_files}")
@@ -85,42 +106,29 @@ def safe_unpack_zip(data, dest_parent: Path, label: str = "upload.zip",
         if info.flag_bits & 0x1:
             raise SessionError(where, f"archive entry '{info.filename}' is encrypted")
         plan.append((info, rel))
-    dest_parent = Path(dest_parent)
-    dest_parent.mkdir(parents=True, exist_ok=True)
-    out = Path(tempfile.mkdtemp(prefix=UPLOAD_PREFIX, dir=dest_parent)).resolve()
-    try:
-        total = 0
-        for info, rel in plan:
-            target = (out / Path(*rel.parts)).resolve() if rel.parts else out
-            if target != out and out not in target.parents:
-                raise SessionError(where, f"archive entry '{info.filename}' leaves the session folder")
-            if info.is_dir():
-                target.mkdir(parents=True, exist_ok=True)
-                continue
-            target.parent.mkdir(parents=True, exist_ok=True)
-            if info.file_size > max_unpacked_bytes or total + info.file_size > max_unpacked_bytes:
-                raise SessionError(where, f"archive unpacks to more than {mb_text(max_unpacked_bytes)}")
-            with zf.open(info) as src, open(target, "xb") as dst:
-                while True:
-                    chunk = src.read(1 << 20)
-                    if not chunk:
-                        break
-                    total += len(chunk)
-                    if total > max_unpacked_bytes:
-                        raise SessionError(where, f"archive unpacks to more than {mb_text(max_unpacked_bytes)}")
-                    dst.write(chunk)
-        return _find_session_root(out, where)
-    except (FileExistsError, NotADirectoryError, IsADirectoryError):
-        shutil.rmtree(out, ignore_errors=True)
-        raise SessionError(where, "archive holds the same path twice, or a file where a folder should be") from None
-    except (zipfile.BadZipFile, zipfile.LargeZipFile, EOFError, NotImplementedError, ValueError, zlib.error) as e:
-        shutil.rmtree(out, ignore_errors=True)
-        raise SessionError(where, f"corrupt or unsupported zip archive ({type(e).__name__})") from None
-    except BaseException:
-        shutil.rmtree(out, ignore_errors=True)
-        raise
-    finally:
-        zf.close()
+    return plan
+
+
+def _extract(zf: zipfile.ZipFile, plan: list, out: Path, where: Path, max_unpacked_bytes: int) -> None:
+    """Write the planned entries under ``out``, counting the bytes actually written (zip bombs)."""
+    total = 0
+    too_big = f"archive unpacks to more than {mb_text(max_unpacked_bytes)}"
+    for info, rel in plan:
+        target = (out / Path(*rel.parts)).resolve() if rel.parts else out
+        if target != out and out not in target.parents:
+            raise SessionError(where, f"archive entry '{info.filename}' leaves the session folder")
+        if info.is_dir():
+            target.mkdir(parents=True, exist_ok=True)
+            continue
+        target.parent.mkdir(parents=True, exist_ok=True)
+        if info.file_size > max_unpacked_bytes - total:
+            raise SessionError(where, too_big)
+        with zf.open(info) as src, open(target, "xb") as dst:
+            while chunk := src.read(1 << 20):
+                total += len(chunk)
+                if total > max_unpacked_bytes:
+                    raise SessionError(where, too_big)
+                dst.write(chunk)
 
 
 def _find_session_root(out: Path, where: Path) -> Path:
