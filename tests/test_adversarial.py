@@ -90,6 +90,14 @@ def _png_claiming(w: int, h: int) -> bytes:
     return bytes(data)
 
 
+def _png16_claiming(w: int, h: int) -> bytes:
+    ok, buf = cv2.imencode(".png", np.full((8, 8, 3), 999, np.uint16))
+    data = bytearray(buf.tobytes())
+    struct.pack_into(">II", data, 16, w, h)
+    struct.pack_into(">I", data, 29, zlib.crc32(bytes(data[12:29])))
+    return bytes(data)
+
+
 def _bmp_claiming(w: int, h: int) -> bytes:
     ok, buf = cv2.imencode(".bmp", np.full((8, 8, 3), 99, np.uint8))
     data = bytearray(buf.tobytes())
@@ -258,6 +266,8 @@ CASES: dict[str, Case] = {
     "BMP claiming 30000 x 30000": Case(lambda r, _: _set_image(r, "big.bmp", _bmp_claiming(30000, 30000)), "big.bmp"),
     "TIFF claiming 30000 x 30000": Case(lambda r, _: _set_image(r, "big.tiff", _tiff_claiming(30000, 30000)), "big.tiff"),
     "WebP claiming 16000 x 16000": Case(lambda r, _: _set_image(r, "big.webp", _webp_claiming(16000, 16000)), "big.webp"),
+    "16-bit PNG of 36 MP (decodes to 288 MB)": Case(lambda r, _: _set_image(r, "deep.png", _png16_claiming(6000, 6000)),
+                                                     "deep.png", phrase="decodes to"),
     "JPEG larger than its intrinsics": Case(lambda r, _: _set_image(r, "mid.jpg", _jpeg_claiming(4000, 3000)), "mid.jpg",
                                             phrase="intrinsics"),
     # clouds

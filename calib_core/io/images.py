@@ -12,6 +12,7 @@ from calib_core import MAX_IMAGE_PIXELS  # 7680 x 5120; also OpenCV's own cap (s
 from calib_core.errors import SessionError
 
 MAX_IMAGE_BYTES = 200 * 2**20
+MAX_DECODED_BYTES = 250_000_000  # the decoded array; an 8-bit RGB camera frame of 40 MP is 120 MB
 MAX_BACKGROUND_FILES = 100  # a background folder is sampled evenly down to this many frames
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".webp")
 VIDEO_SUFFIXES = (".mp4", ".avi", ".mov", ".mkv", ".m4v")
@@ -30,6 +31,9 @@ def read_image_header(path: str | Path) -> tuple[int, int]:
     try:
         with Image.open(path) as im:
             w, h = im.size
+            sample_bytes = _decoded_bytes_per_pixel(im.mode)
+            if im.format == "PNG" and _png_bit_depth(path) == 16:
+                sample_bytes = max(sample_bytes, 8)  # OpenCV keeps 16 bits: up to 4 channels of 2 bytes
     except Image.DecompressionBombError:
         raise SessionError(path, "image header claims too many pixels to be a camera frame") from None
     except (UnidentifiedImageError, SyntaxError, ValueError, TypeError, EOFError, struct.error, OSError,
@@ -38,12 +42,34 @@ def read_image_header(path: str | Path) -> tuple[int, int]:
         if wh is None:
             raise SessionError(path, "cannot decode image (its header is unreadable: corrupt, truncated or not an image)") from None
         w, h = wh
+        sample_bytes = 16  # a TIFF PIL cannot open: assume up to 4 float channels
     if w <= 0 or h <= 0:
         raise SessionError(path, f"image header claims {w} x {h} pixels")
     if w * h > MAX_IMAGE_PIXELS:
         raise SessionError(path, f"image header claims {w} x {h} pixels: more than the {MAX_IMAGE_PIXELS // 10**6} "
                                  "megapixels of a camera frame")
+    if w * h * sample_bytes > MAX_DECODED_BYTES:
+        raise SessionError(path, f"image of {w} x {h} pixels in this pixel format decodes to "
+                                 f"{w * h * sample_bytes / 1e6:.0f} MB: more than the {MAX_DECODED_BYTES / 1e6:.0f} MB "
+                                 "allowed (use 8-bit images)")
     return int(w), int(h)
+
+
+def _png_bit_depth(path: Path) -> int:
+    with open(path, "rb") as f:
+        head = f.read(26)
+    return head[24] if len(head) >= 25 else 8
+
+
+def _decoded_bytes_per_pixel(mode: str) -> int:
+    """Bytes per pixel OpenCV's decode takes for a PIL mode (3 channels for colour, as OpenCV gives)."""
+    if mode in ("1", "L", "P"):
+        return 3  # expanded to RGB uint8 afterwards
+    if mode.startswith("I;16"):
+        return 6  # read as 16-bit: up to 3 channels of 2 bytes
+    if mode in ("I", "F"):
+        return 12  # 32-bit samples
+    return 4 if mode in ("RGBA", "CMYK", "LA", "PA") else 3
 
 
 def _tiff_size(path: Path) -> tuple[int, int] | None:
@@ -105,11 +131,12 @@ def load_image(path: str | Path, expected_wh: tuple[int, int] | None = None) -> 
 def _to_rgb8(path: Path, img: np.ndarray) -> np.ndarray:
     """Any decoded OpenCV image (BGR/BGRA/grey, 8/16-bit or float) -> RGB uint8."""
     if img.dtype == np.uint16:
-        img = (img / 257.0).round().astype(np.uint8)
+        img = cv2.convertScaleAbs(img, alpha=1 / 257.0)  # rounds and saturates, no float copy
     elif img.dtype in (np.float32, np.float64):
-        finite = img[np.isfinite(img)]
-        scale = 255.0 if finite.size and finite.max() <= 1.0 else 1.0  # float images in [0, 1] or [0, 255]
-        img = np.clip(np.nan_to_num(img * scale), 0, 255).round().astype(np.uint8)
+        np.nan_to_num(img, copy=False, posinf=0.0, neginf=0.0)
+        np.clip(img, 0, None, out=img)
+        scale = 255.0 if img.size and float(img.max()) <= 1.0 else 1.0  # float images in [0, 1] or [0, 255]
+        img = cv2.convertScaleAbs(img, alpha=scale)
     elif img.dtype != np.uint8:
         raise SessionError(path, f"unsupported pixel type {img.dtype} (use 8- or 16-bit images)")
     if img.ndim == 3 and img.shape[2] == 1:
