@@ -24,6 +24,7 @@ import numpy as np
 
 from calib_core.camera import CameraModel
 from calib_core.errors import SessionError, short_repr
+from calib_core.io.confine import confine_write
 from calib_core.io.yaml_safe import read_yaml_mapping
 
 SESSION_FORMAT = "sonar-camera-session/1"
@@ -141,7 +142,7 @@ def load_session(folder: str | Path) -> Session:
     if not root.is_dir():
         raise SessionError(root, "not a folder (give the session folder that holds session.yaml)")
     root = root.resolve()
-    manifest = root / MANIFEST
+    manifest = confine_write(root, root / MANIFEST)  # a session.yaml symlinked out of the folder is refused
     data = read_yaml_mapping(manifest, "session manifest (session.yaml)")
 
     fmt = data.get("format")

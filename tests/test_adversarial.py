@@ -310,6 +310,9 @@ CASES: dict[str, Case] = {
     "symlinked cloud folder outside": Case(lambda r, o: (
         (o / "clouds").mkdir(), [os.replace(p, o / "clouds" / p.name) for p in (r / "clouds").iterdir()],
         (r / "clouds").rmdir(), os.symlink(o / "clouds", r / "clouds")), "session.yaml", phrase="leaves the session"),
+    "session.yaml symlinked out of the session": Case(lambda r, o: (
+        os.replace(r / "session.yaml", o / "session.yaml"), os.symlink(o / "session.yaml", r / "session.yaml")),
+        "session.yaml", phrase="outside the session folder"),
     "results/ is a symlink out (calibrate)": Case(lambda r, o: _results_symlink(r, o / "res"), "calibration.json",
                                                   "calibrate --no-detect", phrase="outside the session folder"),
     "results/ is a symlink out (report)": Case(lambda r, o: _results_symlink(r, o / "res"), "results/", "report",
