@@ -135,7 +135,10 @@ class Workbench:
         if self.jobs.running is not None:
             raise SessionError(Path(str(path)), f"'{self.jobs.running}' is still running on the open session; "
                                "open another one when it has finished")
+        old = self.state.session.root if self.state.session is not None else None
         self.state.open(path, check_root=check_root)  # detection of what is missing starts once it is on screen
+        if old is not None and old != self.state.session.root:
+            release_session_lock(old)  # the lock file of the session left behind
         self.uploads.keep_only(self.state.session.root)  # a replaced uploaded session is deleted
 
     def start_detection(self, captures=None, redetect_auto: bool = False) -> None:

@@ -99,3 +99,39 @@ def test_token_and_origin_in_chromium(tmp_path):
     finally:
         evil.shutdown()
         wb.stop()
+
+
+@pytest.mark.skipif(shutil.which("chromium") is None, reason="Debian chromium is not installed")
+def test_script_in_session_fields_stays_text_in_chromium(tmp_path):
+    playwright = pytest.importorskip("playwright.sync_api")
+    import yaml
+
+    from app.server import Workbench
+
+    xss = '<iframe srcdoc="<script>parent.document.title=1</script>"></iframe>'
+    root = make_session(tmp_path / "s")
+    manifest = yaml.safe_load((root / "session.yaml").read_text())
+    manifest["name"] = "Sitzung über Wasser " + xss
+    manifest["captures"][0]["id"] = "<img src=x onerror=alert(1)>"
+    (root / "session.yaml").write_text(yaml.safe_dump(manifest, allow_unicode=True))
+    (root / "detections.yaml").unlink(missing_ok=True)
+    wb = Workbench(root, port=0, uploads_dir=tmp_path / "uploads")
+    try:
+        with playwright.sync_playwright() as p:
+            ctx = p.chromium.launch_persistent_context(str(tmp_path / "profile"), executable_path=shutil.which("chromium"),
+                                                       headless=True, args=ARGS)
+            ctx.set_default_timeout(30_000)
+            try:
+                page = ctx.new_page()
+                dialogs = []
+                page.on("dialog", lambda d: (dialogs.append(d.message), d.dismiss()))
+                page.goto(wb.url)
+                page.get_by_text("Sitzung über Wasser", exact=False).first.wait_for()
+                page.get_by_text("<iframe srcdoc=", exact=False).first.wait_for()  # shown as text
+                assert page.evaluate("document.querySelectorAll('iframe').length") == 0
+                assert page.evaluate("document.querySelectorAll('img[src=\"x\"]').length") == 0
+                assert not dialogs and page.title() != "1"
+            finally:
+                ctx.close()
+    finally:
+        wb.stop()
