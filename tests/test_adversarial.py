@@ -251,6 +251,8 @@ CASES: dict[str, Case] = {
     "alias bomb in detections extra key (detect)": Case(
         lambda r, _: _detections_with_extra(r, billion_laughs()), "detections.yaml", "detect"),
     "alias bomb in detections (info)": Case(lambda r, _: _detections_with_extra(r, billion_laughs()), "detections.yaml"),
+    "detections.yaml with 700 000 values (slow to parse)": Case(lambda r, _: _detections_with_extra(
+        r, "x: [" + ", ".join(["1"] * 700_000) + "]\n"), "detections.yaml", "detect"),
     "deep nesting in detections": Case(lambda r, _: _detections_with_extra(r, "x: " + "[" * 50000 + "]" * 50000 + "\n"),
                                        "detections.yaml", "detect"),
     "calibration.json of 100 MB": Case(lambda r, _: (_write_calibration(r), open(r / "results" / "calibration.json",

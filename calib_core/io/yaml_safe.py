@@ -1,10 +1,11 @@
 """The one YAML reader for every file the tool reads (session.yaml, intrinsics, detections ...).
 
-Safe against hostile files: the size is capped before reading, the nesting depth while
-composing (libyaml's own composer recurses on the C stack and crashes at ~50k levels,
-so libyaml is used only as the event parser and the composer here is Python with a
-depth check), and the alias count and the size of the tree once aliases are expanded
-(a "billion laughs" document) before anything is constructed. Every violation is a
+Safe against hostile files: the size is capped before reading; libyaml's event stream
+(iterative, in C) is walked first to cap the nesting depth (libyaml's composer recurses
+on the C stack and crashes at ~50k levels), the number of values (parsing costs about
+1-2 us a value: the cap bounds the time) and the aliases; only then does libyaml compose
+the document, and the size of the tree once aliases are expanded (a "billion laughs"
+document) is checked before anything is constructed. Every violation is a
 :class:`SessionError` naming the file. The returned data holds no shared sub-trees:
 aliases are expanded into copies (bounded by the expansion cap), so a later save
 writes exactly what was read and never walks a shared tree.
@@ -25,14 +26,19 @@ from calib_core.errors import SessionError
 MAX_YAML_BYTES = 20_000_000
 MAX_DEPTH = 64
 MAX_ALIASES = 100_000  # our own saves never write aliases; other tools may
-MAX_EXPANDED_NODES = 2_000_000  # only documents with aliases are expanded (others are trees already)
+MAX_EXPANDED_NODES = 1_000_000  # only documents with aliases are expanded (others are trees already)
+MAX_NODES = 500_000  # values in the file itself; a detections.yaml of 100 captures holds ~25 000
 
-try:  # libyaml's event parser (not its composer): fast and iterative
+try:  # libyaml: its event parser is iterative; its composer recurses, so it runs only after prescan()
     from yaml._yaml import CParser as _Parser
+
+    _C_LOADER = yaml.CSafeLoader
 
     def _init_parser(self, text):
         _Parser.__init__(self, text)
-except ImportError:  # pragma: no cover - pure-Python fallback
+except (ImportError, AttributeError):  # pragma: no cover - pure-Python fallback
+    _C_LOADER = None
+
     from yaml.parser import Parser as _PyParser
     from yaml.reader import Reader
     from yaml.scanner import Scanner
@@ -76,6 +82,9 @@ class _LimitedLoader(_Parser, Composer, SafeConstructor, Resolver):
             if event.anchor in self._open_anchors:
                 raise YamlLimit(f"alias *{str(event.anchor)[:40]} refers to a node that contains it")
         anchor = getattr(event, "anchor", None) if not isinstance(event, yaml.AliasEvent) else None
+        self._nodes = getattr(self, "_nodes", 0) + 1
+        if self._nodes > MAX_NODES:
+            raise YamlLimit(f"more than {MAX_NODES} values")
         self._depth += 1
         if self._depth > MAX_DEPTH:
             raise YamlLimit(f"nested more than {MAX_DEPTH} levels deep")
@@ -125,8 +134,58 @@ def _unshare(x):
     return x
 
 
+def _parse_with_libyaml(text: str):
+    """Fast path: the checks on the event stream first, then libyaml's composer (now safe)."""
+    aliases = prescan(text)
+    loader = _C_LOADER(text)
+    try:
+        node = loader.get_single_node()
+        if node is None:
+            return None
+        if not aliases:
+            return loader.construct_document(node)
+        expanded_size(node)
+        return _unshare(loader.construct_document(node))
+    finally:
+        loader.dispose()
+
+
+def prescan(text: str) -> int:
+    """Walk libyaml's event stream (iterative, in C) checking depth and aliases; return the
+    alias count. Only a document that passes is handed to libyaml's (recursive) composer."""
+    parser = _Parser(text)
+    depth, aliases, open_anchors, nodes = 0, 0, [], 0
+    try:
+        while True:
+            ev = parser.get_event()
+            if isinstance(ev, yaml.NodeEvent):
+                nodes += 1
+                if nodes > MAX_NODES:
+                    raise YamlLimit(f"more than {MAX_NODES} values")
+            if isinstance(ev, (yaml.MappingStartEvent, yaml.SequenceStartEvent)):
+                depth += 1
+                if depth > MAX_DEPTH:
+                    raise YamlLimit(f"nested more than {MAX_DEPTH} levels deep")
+                open_anchors.append(ev.anchor)
+            elif isinstance(ev, (yaml.MappingEndEvent, yaml.SequenceEndEvent)):
+                depth -= 1
+                open_anchors.pop()
+            elif isinstance(ev, yaml.AliasEvent):
+                aliases += 1
+                if aliases > MAX_ALIASES:
+                    raise YamlLimit(f"more than {MAX_ALIASES} aliases")
+                if ev.anchor in open_anchors:
+                    raise YamlLimit(f"alias *{str(ev.anchor)[:40]} refers to a node that contains it")
+            elif isinstance(ev, yaml.StreamEndEvent):
+                return aliases
+    finally:
+        parser.dispose()
+
+
 def parse_yaml_text(text: str):
     """Parse one YAML document with the caps; raises yaml.YAMLError or YamlLimit."""
+    if _C_LOADER is not None:
+        return _parse_with_libyaml(text)
     loader = _LimitedLoader(text)
     try:
         node = loader.get_single_node()
