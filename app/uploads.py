@@ -14,7 +14,6 @@ import os
 import shutil
 import stat
 import tempfile
-import threading
 import zipfile
 import zlib
 from pathlib import Path, PurePosixPath
