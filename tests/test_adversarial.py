@@ -779,3 +779,53 @@ def test_cli_tables_print_names_as_plain_text():
     con.print(table("Captures of [/bold]x", ["capture", "[red]"], [["[/bold]p01[link=file:///etc]", "[/]"]]))
     text = con.export_text()
     assert "[/bold]p01[link=file:///etc]" in text and "Captures of [/bold]x" in text
+
+
+def test_uploads_through_a_real_websocket(tmp_path):
+    """The receiver really replaces viser's handlers: an over-size upload is refused from its first
+    message and never stored; a good one is streamed to disk and opened."""
+    import msgspec
+    import viser
+    from websockets.sync.client import connect
+
+    from app.server import Workbench
+    from app.uploads import MAX_UPLOAD_BYTES
+
+    src = build_session(tmp_path / "src", n_captures=2, cameras=("cam1",))
+    _edit_manifest(src, lambda d: d.update(name="uploaded over the wire"))
+    buf = io.BytesIO()
+    with zipfile.ZipFile(buf, "w") as zf:
+        for p in src.rglob("*"):
+            if p.is_file():
+                zf.write(p, "s/" + str(p.relative_to(src)))
+    payload = buf.getvalue()
+    wb = Workbench(build_session(tmp_path / "first", n_captures=2, cameras=("cam1",)), port=0,
+                   uploads_dir=tmp_path / "up")
+    try:
+        assert wb.wait_idle(60)
+        ws = connect(f"ws://127.0.0.1:{wb.port}/?token={wb.token}", subprotocols=[f"viser-v{viser.__version__}"],
+                     open_timeout=10, max_size=None)
+        uuid = wb.session_panel.upload._impl.uuid
+        send = lambda **m: ws.send(msgspec.msgpack.encode(m))  # noqa: E731
+        send(type="FileTransferStartUpload", source_component_uuid=uuid, transfer_uuid="big", filename="big.zip",
+             mime_type="application/zip", part_count=500, size_bytes=MAX_UPLOAD_BYTES + 1)
+        send(type="FileTransferPart", source_component_uuid=uuid, transfer_uuid="big", part_index=0,
+             content=bytes(524288))
+        half = (len(payload) + 1) // 2
+        send(type="FileTransferStartUpload", source_component_uuid=uuid, transfer_uuid="ok", filename="s.zip",
+             mime_type="application/zip", part_count=2, size_bytes=len(payload))
+        for i in range(2):
+            send(type="FileTransferPart", source_component_uuid=uuid, transfer_uuid="ok", part_index=i,
+                 content=payload[i * half:(i + 1) * half])
+        deadline = time.monotonic() + 60
+        while wb.state.session.name != "uploaded over the wire" and time.monotonic() < deadline:
+            try:
+                ws.recv(timeout=0.2)
+            except TimeoutError:
+                pass
+        assert wb.state.session.name == "uploaded over the wire"
+        assert "big" in wb.session_panel.receiver.refused and "big" not in wb.session_panel.receiver.transfers
+        assert not [p for p in (tmp_path / "up").iterdir() if p.name.startswith("incoming-")]
+        ws.close()
+    finally:
+        wb.stop()
