@@ -10,7 +10,7 @@ from pathlib import Path
 from sonarcal_cli.ui import console, err_console, progress_bar
 
 GENERATED = ("session.yaml", "ground_truth.yaml", "detections.yaml", "images", "clouds", "backgrounds",
-             "intrinsics", "results")
+             "intrinsics", "results", "frames")
 
 
 def add_parser(sub) -> None:

@@ -30,6 +30,8 @@ class Preset:
         (wrong-diameter test: ~30 % too big or too small).
     cloud_format: suffix of the cloud files (".ply", ".pcd", ".npy", ".xyz").
     scale: image resolution factor (1.0 = 1920x1080); K scales with it.
+    drift_m: one capture's sphere drifts this far (m) during its scan; the session then holds
+        ``frames/<cam>/<id>_<j>.jpg`` recorded during that scan (a bag written from it shows the drift).
     corner_fraction: share of captures aimed near an image corner.
     """
 
@@ -53,6 +55,8 @@ class Preset:
     scale: float = 1.0
     corner_fraction: float = 0.3
     jpeg_quality: int = 90
+    drift_m: float = 0.0
+
 
     def with_(self, **changes) -> "Preset":
         """A copy with some fields changed (e.g. ``scale=0.25`` for fast tests)."""
@@ -80,6 +84,8 @@ _LIST = [
            pan_step_deg=0.75, decoys=True, cloud_format=".xyz"),
     Preset("wrongdiam", "session.yaml states a sphere diameter ~30 % off the true one", n_captures=8,
            pan_step_deg=0.75, diameter_factor=1.3),
+    Preset("drift", "one capture's sphere drifts 8 cm during its scan (frames recorded during the scan; "
+           "for bag round trips and the target-motion check)", n_captures=6, pan_step_deg=1.0, drift_m=0.08),
 ]
 
 PRESETS: dict[str, Preset] = {p.name: p for p in _LIST}
