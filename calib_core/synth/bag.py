@@ -37,7 +37,7 @@ class BagTimeline:
     scan_s: float = 60.0
     gap_s: float = 8.0
     first_scan_s: float = 5.0
-    n_slices: int = 24
+    n_slices: int = 60
     frames_per_scan: int = 5
     frame_noise_dn: float = 1.5
     compressed: bool = False
