@@ -51,14 +51,17 @@ class ImportResult:
 class Assembler:
     """Collects captures into a staged session and writes the manifest at the end."""
 
-    def __init__(self, st: StagedSession, opts: ImportOptions, windows: list[ScanWindow], t0_ns: int):
-        self.st, self.opts, self.windows, self.t0 = st, opts, windows, t0_ns
+    def __init__(self, st: StagedSession, opts: ImportOptions, windows: list[ScanWindow], t0_ns: int,
+                 ids: list[str] | None = None):
+        self.st, self.opts, self.windows, self.t0, self.ids = st, opts, windows, t0_ns, ids
         self.captures, self.source_caps, self.motion = [], {}, {}
         self.moved, self.skipped = [], []
         self.done: set[int] = set()
         self.width = max(2, len(str(len(windows))))
 
     def capture_id(self, i: int) -> str:
+        if self.ids is not None:
+            return self.ids[i]
         return f"{self.opts.id_prefix}{i + 1:0{self.width}d}"
 
     def rel_s(self, t_ns: int) -> float:
