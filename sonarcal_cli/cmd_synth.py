@@ -26,6 +26,10 @@ def add_parser(sub) -> None:
     p.add_argument("--scale", type=float, default=None,
                    help="image resolution factor (1 = 1920x1080; e.g. 0.25 for fast tests)")
     p.add_argument("--force", action="store_true", help="replace the contents of a non-empty OUT folder")
+    p.add_argument("--bag", choices=["ros2", "ros2-db3", "ros1"],
+                   help="also write the session as a ROS bag recorded over time (ros2: MCAP folder OUT_ros2; "
+                        "ros2-db3: SQLite folder OUT_db3; ros1: OUT.bag); import it with sonarcal import")
+    p.add_argument("--bag-path", help="where to write the bag (must not exist)")
     p.set_defaults(run=run)
 
 
@@ -60,4 +64,20 @@ def run(args) -> int:
     with progress_bar(f"synth {args.preset}") as cb:
         generate_session(out, args.preset, args.seed, progress=cb, **overrides)
     console.print(f"wrote session {out} (preset {args.preset}, seed {args.seed}) with ground_truth.yaml")
+    if args.bag:
+        _write_bag(out, args)
     return 0
+
+
+def _write_bag(out: Path, args) -> None:
+    from calib_core.errors import SessionError
+    from calib_core.synth.bag import BACKGROUND_S, write_session_bag
+
+    default = {"ros2": f"{out}_ros2", "ros2-db3": f"{out}_db3", "ros1": f"{out}.bag"}[args.bag]
+    path = Path(args.bag_path or default)
+    if path.exists():
+        raise SessionError(path, "bag path exists already (remove it or give --bag-path)")
+    with progress_bar(f"bag {args.bag}") as cb:
+        write_session_bag(out, path, args.bag, seed=args.seed, progress=cb)
+    console.print(f"wrote {args.bag} bag {path} (background frames in the first {BACKGROUND_S:g} s: "
+                  f"import with --background 0:{BACKGROUND_S:g})")

@@ -4,7 +4,7 @@ Timeline: ``BACKGROUND_S`` seconds of sphere-free camera frames (the session's b
 frames), then one sonar scan per capture, ``scan_s`` long, separated by ``gap_s``. Each scan's
 cloud is cut by pan angle (the sonar pans about its z axis) into ``n_slices`` PointCloud2
 messages spread over the scan; each camera publishes ``frames_per_scan`` frames during it
-(the capture's still with fresh sensor noise, or, where the session holds
+(the capture's still mid-scan and copies of it with fresh sensor noise around it, or, where the session holds
 ``frames/<cam>/<id>_<j>.<ext>``, those frames: the drifting target of the ``drift`` preset)
 and a CameraInfo with each frame.
 
@@ -14,6 +14,8 @@ Topics: ``/sonar/points``, ``/<cam>/image_raw`` (or ``/<cam>/image_raw/compresse
 
 from __future__ import annotations
 
+import shutil
+import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -53,7 +55,23 @@ def image_topic(cam: str, compressed: bool) -> str:
 
 def write_session_bag(session_dir, out_path, kind: str = "ros2", timeline: BagTimeline = BagTimeline(),
                       seed: int = 0, progress=None) -> Path:
-    """Write session ``session_dir`` as a bag at ``out_path`` (which must not exist)."""
+    """Write session ``session_dir`` as a bag at ``out_path`` (which must not exist).
+
+    The bag is written inside a temporary folder beside ``out_path`` and renamed into place.
+    """
+    out = Path(out_path).absolute()
+    if out.exists():
+        raise FileExistsError(f"{out} exists already")
+    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.writing-", dir=out.parent))
+    try:
+        _write(session_dir, tmp / out.name, kind, timeline, seed, progress)
+        (tmp / out.name).rename(out)
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+    return out
+
+
+def _write(session_dir, out_path: Path, kind: str, timeline: BagTimeline, seed: int, progress) -> None:
     s = load_session(session_dir)
     rng = np.random.default_rng(seed)
     cams = {c: s.camera_model(c) for c in s.cameras}
@@ -67,13 +85,15 @@ def write_session_bag(session_dir, out_path, kind: str = "ros2", timeline: BagTi
             _write_scan(w, load_cloud(cap.cloud_path), t0, t1, timeline.n_slices)
             for cam, path in cap.image_paths.items():
                 frames = _frames_for(s.root, cam, cap.id, path, timeline.frames_per_scan)
+                repeated = all(f is frames[0] for f in frames)
                 for j, img in enumerate(frames):
                     t = t0 + (j + 0.5) / len(frames) * (t1 - t0)
-                    noisy = _noisy(img, rng, timeline.frame_noise_dn)
-                    _write_frame(w, cam, cams[cam], int(t * NS), noisy, timeline.compressed)
+                    # the still is the frame recorded mid-scan; the others are repeats with fresh noise
+                    noisy = repeated and j != len(frames) // 2
+                    frame = _noisy(img, rng, timeline.frame_noise_dn) if noisy else img
+                    _write_frame(w, cam, cams[cam], int(t * NS), frame, timeline.compressed)
             if progress:
                 progress(k + 2, total, cap.id)
-    return Path(out_path)
 
 
 def _write_backgrounds(w: BagWriter, s, cams, tl: BagTimeline) -> None:
