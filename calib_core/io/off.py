@@ -25,7 +25,7 @@ def read_off(path: Path) -> tuple[np.ndarray, np.ndarray]:
     """(N,3) points in metres and (N,) intensity from a ProScan ``.off`` file."""
     path = Path(path)
     with open(path, "rb") as f:
-        n = _header(path, f)
+        n, n_faces = _header(path, f)
         if n * MIN_ROW_BYTES > path.stat().st_size:
             raise SessionError(path, f"header declares {n} points but the file is too small to hold them (truncated?)")
         pts, inten = np.empty((n, 3)), np.empty(n)
@@ -39,12 +39,12 @@ def read_off(path: Path) -> tuple[np.ndarray, np.ndarray]:
                 pts[done:done + k], inten[done:done + k] = chunk[:, :3], chunk[:, 3:6].mean(axis=1)
                 done += k
             rest = tf.read(4096).strip()
-            if rest and not re.match(r"^\d+\s+\d", rest):  # face rows may follow; anything else is wrong
+            if rest and (n_faces == 0 or not re.match(r"^\d+\s+\d", rest)):  # only declared face rows may follow
                 raise SessionError(path, f"more rows than the {n} points the header declares")
     return pts, inten
 
 
-def _header(path: Path, f) -> int:
+def _header(path: Path, f) -> tuple[int, int]:
     first = f.readline(64).strip()
     if first not in (b"OFF", b"COFF"):
         raise SessionError(path, "not a ProScan .off file (first line must be OFF or COFF)")
@@ -57,7 +57,7 @@ def _header(path: Path, f) -> int:
         raise SessionError(path, "line 2 must be three counts: points faces edges")
     if counts[0] == 0:
         raise SessionError(path, "point cloud holds no points (its header declares 0)")
-    return counts[0]
+    return counts[0], counts[1]
 
 
 def _chunk(path: Path, tf, rows: int, done: int) -> np.ndarray:
