@@ -96,3 +96,29 @@ def test_bag_calibrates_like_the_folder(synth, imported):
         errs.append(pose_error(np.asarray(cal["cameras"]["cam1"]["T_cam_sonar"]), T_true))
     (r0, t0), (r1, t1) = errs
     assert t1 <= 1.1 * t0 + 1e-4 and r1 <= 1.1 * r0 + 1e-5
+
+
+def test_report_section_names_the_drifting_capture(synth, imported):
+    from calib_core.report_motion import motion_section
+
+    _, _, _, drift_id = synth
+    html = motion_section(load_session(imported))
+    assert "Target moved during scan: " + drift_id in html
+    assert html.count("<tr class='bad'>") == 1
+    assert motion_section(load_session(synth[1])) == ""  # a folder session without a track: no section
+
+
+def test_workbench_shows_the_track(synth, imported):
+    from app.motion_panel import motion_markdown
+    from app.server import Workbench
+
+    _, folder, _, drift_id = synth
+    assert f"moved in {drift_id}" in motion_markdown(load_session(imported))
+    assert "no track" in motion_markdown(load_session(folder))
+    wb = Workbench(imported, port=0)
+    try:
+        wb.wait_idle(60)
+        assert f"moved in {drift_id}" in wb.motion_panel.md.content
+        assert wb.motion_panel.md.content.count("MOVED") == 1
+    finally:
+        wb.stop()
