@@ -10,8 +10,6 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import numpy as np
-
 from calib_core.errors import SessionError
 from calib_core.ingest import rosmsg
 from calib_core.ingest.assemble import MAX_BACKGROUND_FRAMES, Assembler, ImportOptions, ImportResult
