@@ -91,7 +91,7 @@ class Assembler:
         self.captures.append({"id": cid, "cloud": cloud, "images": images})
         self.source_caps[cid] = info
 
-    def manifest(self, cameras: dict[str, dict], source: dict, name: str) -> ImportResult:
+    def manifest(self, cameras: dict[str, dict], source: dict, name: str, stereo: dict | None = None) -> ImportResult:
         if not self.captures:
             from calib_core.errors import SessionError
 
@@ -106,5 +106,8 @@ class Assembler:
                                   "captures": self.motion}}
         if not data["sonar"]:
             del data["sonar"]
+        if stereo:
+            data["stereo"] = stereo
+            source["stereo_from"] = "/tf_static"
         self.st.manifest(data)
         return ImportResult(self.st.target, [c["id"] for c in self.captures], self.moved, self.skipped)

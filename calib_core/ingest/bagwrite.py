@@ -26,6 +26,11 @@ class BagWriter:
         self.path, self.kind = Path(path), kind
         self.ros1 = kind == "ros1"
         self.typestore = get_typestore(Stores.ROS1_NOETIC if self.ros1 else Stores.ROS2_HUMBLE)
+        if "tf2_msgs/msg/TFMessage" not in self.typestore.types:  # the Noetic store lacks tf2_msgs
+            from rosbags.typesys import get_types_from_msg
+
+            self.typestore.register(get_types_from_msg("geometry_msgs/TransformStamped[] transforms",
+                                                       "tf2_msgs/msg/TFMessage"))
         if self.ros1:
             from rosbags.rosbag1 import Writer
 

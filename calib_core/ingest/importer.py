@@ -41,13 +41,14 @@ def import_bag(source, out, opts: ImportOptions, progress=None) -> ImportResult:
             streams = [c for c in reader.connections if c.topic == sonar or c.topic in topic_cam]
             total = sum(int(c.msgcount) for c in streams)
             acc: dict[int, list] = {}
+            frame_ids: dict[str, str] = {}
             for n, (conn, t, raw) in enumerate(_messages(reader, source, streams)):
                 i = scan_index(windows, t)
                 if conn.topic == sonar:
                     if i >= 0:
                         acc.setdefault(i, []).append(_decode(reader, source, conn, t, t0, raw, rosmsg.cloud_from_msg))
                 else:
-                    _image(reader, source, conn, t, t0, raw, i, topic_cam[conn.topic], keeper, bg)
+                    _image(reader, source, conn, t, t0, raw, i, topic_cam[conn.topic], keeper, bg, frame_ids)
                 _flush(asm, keeper, acc, windows, t, bg)
                 if progress and n % 20 == 0:
                     progress(n, total, conn.topic)
@@ -57,7 +58,7 @@ def import_bag(source, out, opts: ImportOptions, progress=None) -> ImportResult:
             src = {"kind": "ros1-bag" if source.suffix == ".bag" else "ros2-bag", "path": str(source.absolute()),
                    "sonar_topic": sonar, "scan_split": rule, "start_time_ns": t0,
                    "cameras": {c.name: {"image_topic": c.image_topic, "info_topic": c.info_topic} for c in cams}}
-            return asm.manifest(cam_entries, src, source.stem)
+            return asm.manifest(cam_entries, src, source.stem, stereo=_stereo(reader, source, rows, cams, frame_ids))
 
 
 def _messages(reader, path, connections):
@@ -84,11 +85,12 @@ def _decode(reader, path, conn, t, t0, raw, convert):
         raise SessionError(path, f"topic {conn.topic} at {(t - t0) / NS:.3f} s: {e}") from None
 
 
-def _image(reader, path, conn, t, t0, raw, i, cam, keeper: FrameKeeper, bg) -> None:
+def _image(reader, path, conn, t, t0, raw, i, cam, keeper: FrameKeeper, bg, frame_ids: dict) -> None:
     """One image message: a background frame, a frame of scan ``i``, or (outside both) skipped."""
     if i < 0 and not bg.wants(t):
         return
-    img = _decode(reader, path, conn, t, t0, raw, lambda m: rosmsg.image_from_msg(m, conn.msgtype))
+    img, frame_ids[cam] = _decode(reader, path, conn, t, t0, raw,
+                                  lambda m: (rosmsg.image_from_msg(m, conn.msgtype), m.header.frame_id))
     if i < 0:
         bg.add(cam, t, img)
         return
@@ -97,6 +99,19 @@ def _image(reader, path, conn, t, t0, raw, i, cam, keeper: FrameKeeper, bg) -> N
         keeper.add(cam, i, t, img)
     except ValueError as e:
         raise SessionError(path, f"topic {conn.topic} at {(t - t0) / NS:.3f} s: {e}") from None
+
+
+def _stereo(reader, path, rows, cams, frame_ids: dict) -> dict:
+    """``{T_<cam2>_<cam1>: 4x4}`` from /tf_static when there are two cameras whose frames it links."""
+    from calib_core.ingest.tf import edges_from_msgs, transform_between
+
+    tf_conns = [c for c in reader.connections if c.msgtype == rosmsg.TF_STATIC and c.topic.endswith("tf_static")]
+    if len(cams) != 2 or not tf_conns or not all(c.name in frame_ids for c in cams):
+        return {}
+    msgs = [_decode(reader, path, c, t, reader.start_time, raw, lambda m: m) for c, t, raw in _messages(reader, path, tf_conns)]
+    a, b = cams
+    T = transform_between(edges_from_msgs(msgs), frame_ids[b.name], frame_ids[a.name])
+    return {} if T is None else {f"T_{b.name}_{a.name}": [[round(float(v), 9) for v in row] for row in T]}
 
 
 def _camera_models(reader, path, cams, opts: ImportOptions, conns) -> dict:

@@ -9,7 +9,8 @@ messages spread over the scan; each camera publishes ``frames_per_scan`` frames 
 and a CameraInfo with each frame.
 
 Topics: ``/sonar/points``, ``/<cam>/image_raw`` (or ``/<cam>/image_raw/compressed``),
-``/<cam>/camera_info``.
+``/<cam>/camera_info`` (frame id: the camera's name), and ``/tf_static`` with the session's
+stereo transform when it has one.
 """
 
 from __future__ import annotations
@@ -77,6 +78,7 @@ def _write(session_dir, out_path: Path, kind: str, timeline: BagTimeline, seed: 
     cams = {c: s.camera_model(c) for c in s.cameras}
     total = len(s.captures) + 1
     with BagWriter(out_path, kind) as w:
+        _write_tf_static(w, s)
         _write_backgrounds(w, s, cams, timeline)
         if progress:
             progress(1, total, "backgrounds")
@@ -94,6 +96,26 @@ def _write(session_dir, out_path: Path, kind: str, timeline: BagTimeline, seed: 
                     _write_frame(w, cam, cams[cam], int(t * NS), frame, timeline.compressed)
             if progress:
                 progress(k + 2, total, cap.id)
+
+
+def _write_tf_static(w: BagWriter, s) -> None:
+    """The session's stereo transforms as /tf_static (parent = target camera's frame)."""
+    from calib_core.ingest.tf import tf_static_msg
+
+    for key, T in s.stereo.items():
+        target, source = _stereo_names(key, s.cameras)
+        if target is None:
+            continue
+        msg = tf_static_msg(w.typestore, 0, target, source, np.asarray(T, float), w.ros1)
+        w.write("/tf_static", rosmsg.TF_STATIC, 1, msg)
+
+
+def _stereo_names(key: str, cameras) -> tuple[str | None, str | None]:
+    for a in cameras:
+        for b in cameras:
+            if a != b and key == f"T_{a}_{b}":
+                return a, b
+    return None, None
 
 
 def _write_backgrounds(w: BagWriter, s, cams, tl: BagTimeline) -> None:
