@@ -137,3 +137,24 @@ def test_small_bag_imports_one_cloud_per_scan(tmp_path, capsys):
     assert [c["id"] for c in man["captures"]] == [f"p{i:02d}" for i in range(1, 7)]
     assert man["source"]["scan_split"] == "one PointCloud2 per scan"
     assert not [p for p in tmp_path.iterdir() if p.name.startswith(".")]
+
+
+@pytest.mark.parametrize("kind, suffix", [("ros2-db3", ".db3"), ("ros2", ".mcap")])
+def test_ros2_storage_file_path_and_compressed_frames(tmp_path, capsys, kind, suffix):
+    """A ROS 2 bag given by its .db3 / .mcap file; JPEG CompressedImage frames decode."""
+    import cv2
+
+    frame = np.zeros((48, 64, 3), np.uint8)
+    frame[:, :32] = 200
+    ok, jpg = cv2.imencode(".jpg", frame)
+    bag = _bag(tmp_path / "b", kind, compressed_data=jpg.tobytes())
+    data_file = next(bag.glob(f"*{suffix}"))
+    out = tmp_path / "s"
+    assert main(["import", str(data_file), "--out", str(out), "--diameter", "0.2", "--split", "message"]) == 0
+    from calib_core.io.images import load_image
+    from calib_core.session import load_session
+
+    s = load_session(out)
+    img = load_image(s.captures[0].image_paths["cam1"])
+    assert img.shape == (48, 64, 3) and abs(int(img[10, 5, 0]) - 200) < 8 and int(img[10, 60, 0]) < 8
+    assert s.raw["source"]["cameras"]["cam1"]["image_topic"] == "/cam1/image_raw/compressed"
