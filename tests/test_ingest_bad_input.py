@@ -158,3 +158,19 @@ def test_ros2_storage_file_path_and_compressed_frames(tmp_path, capsys, kind, su
     img = load_image(s.captures[0].image_paths["cam1"])
     assert img.shape == (48, 64, 3) and abs(int(img[10, 5, 0]) - 200) < 8 and int(img[10, 60, 0]) < 8
     assert s.raw["source"]["cameras"]["cam1"]["image_topic"] == "/cam1/image_raw/compressed"
+
+
+def test_camera_info_topic_without_messages_and_bad_name(tmp_path, capsys):
+    bag = tmp_path / "a.bag"
+    with BagWriter(bag, "ros1") as w:
+        ts = w.typestore
+        w.connection("/cam1/camera_info", rosmsg.CAMERA_INFO)  # declared, never published
+        for i in range(3):
+            t = (1 + i) * NS
+            w.write("/sonar/points", rosmsg.POINTCLOUD2, t, rosmsg.cloud_msg(ts, t, "s", np.ones((5, 3)), None, True))
+            w.write("/cam1/image_raw", rosmsg.IMAGE, t, rosmsg.image_msg(ts, t, "c", np.zeros((48, 64, 3), np.uint8), True))
+    rc, err = _run(capsys, bag, "--out", tmp_path / "s", "--diameter", 0.2)
+    assert rc == 2 and "no CameraInfo message for camera cam1" in err and "--intrinsics" in err
+    rc, err = _run(capsys, bag, "--out", tmp_path / "s", "--diameter", 0.2, "--camera-topic", "../x=/cam1/image_raw")
+    assert rc == 2 and "camera name" in err
+    assert not (tmp_path / "s").exists()

@@ -122,6 +122,8 @@ def pick_cameras(path, rows: list[TopicRow], wanted: list[str] | None) -> list[C
         chosen = []
         for w in wanted:
             name, _, topic = w.rpartition("=")
+            if name and not re.fullmatch(r"[A-Za-z0-9_.-]{1,64}", name) or name in (".", ".."):
+                raise SessionError(path, f"camera name {name!r} must be letters, digits, '_', '-' or '.'")
             _check_topic(path, rows, topic, rosmsg.IMAGE_TYPES)
             chosen.append((name or None, topic))
     else:

@@ -135,6 +135,9 @@ def _camera_models(reader, path, cams, opts: ImportOptions, conns) -> dict:
         models[name] = _decode(reader, path, conn, t, reader.start_time, raw, lambda m: rosmsg.camera_from_info(m, name))
         if all(n in models for n in need.values()):
             break
+    silent = [f"{n} ({t})" for t, n in need.items() if n not in models]
+    if silent:
+        raise SessionError(path, f"no CameraInfo message for camera {', '.join(silent)}: give --intrinsics NAME=FILE")
     return models
 
 
