@@ -72,24 +72,26 @@ class Assembler:
         cid, w = self.capture_id(i), self.windows[i]
         info = {"start_s": self.rel_s(w.start_ns), "end_s": self.rel_s(w.end_ns), "clouds": n_messages,
                 "points": int(sum(len(p) for p in points))}
+        self.source_caps[cid] = info
         if not points or info["points"] == 0 or not frames:
-            info["skipped"] = "no sonar points" if not points or info["points"] == 0 else "no camera frame during the scan"
-            self.source_caps[cid], _ = info, self.skipped.append(cid)
+            self._skip(cid, "no sonar points" if info["points"] == 0 else "no camera frame during the scan")
             return
         if motion is not None:
             self.motion[cid] = motion
             if motion["moved"]:
                 self.moved.append(cid)
                 if self.opts.drop_moved:
-                    info["skipped"] = "target moved during the scan"
-                    self.source_caps[cid], _ = info, self.skipped.append(cid)
+                    self._skip(cid, "target moved during the scan")
                     return
         pts = np.concatenate(points)
         it = np.concatenate(inten) if inten is not None and len(inten) == len(points) else None
         cloud = self.st.cloud(cid, pts, it)
         images = {cam: self.st.image("images", cam, cid, img) for cam, img in sorted(frames.items())}
         self.captures.append({"id": cid, "cloud": cloud, "images": images})
-        self.source_caps[cid] = info
+
+    def _skip(self, cid: str, reason: str) -> None:
+        self.source_caps[cid]["skipped"] = reason
+        self.skipped.append(cid)
 
     def manifest(self, cameras: dict[str, dict], source: dict, name: str, stereo: dict | None = None) -> ImportResult:
         if not self.captures:

@@ -29,7 +29,7 @@ def import_bag(source, out, opts: ImportOptions, progress=None) -> ImportResult:
         cams = pick_cameras(source, rows, opts.camera_topics)
         conns = {c.topic: c for c in reader.connections}
         models = _camera_models(reader, source, cams, opts, conns)
-        times = [t for _, t, _ in _messages(reader, source, [c for c in reader.connections if c.topic == sonar])]
+        times = _sonar_times(reader, source, sonar, progress)
         windows, rule = split_scans(times, opts.split, opts.gap_seconds, opts.scan_seconds)
         t0 = int(reader.start_time)
         topic_cam = {c.image_topic: c.name for c in cams}
@@ -59,6 +59,17 @@ def import_bag(source, out, opts: ImportOptions, progress=None) -> ImportResult:
                    "sonar_topic": sonar, "scan_split": rule, "start_time_ns": t0,
                    "cameras": {c.name: {"image_topic": c.image_topic, "info_topic": c.info_topic} for c in cams}}
             return asm.manifest(cam_entries, src, source.stem, stereo=_stereo(reader, source, rows, cams, frame_ids))
+
+
+def _sonar_times(reader, path, sonar: str, progress) -> list[int]:
+    """Pass 1: the sonar messages' bag times (the data is read but not decoded)."""
+    conns = [c for c in reader.connections if c.topic == sonar]
+    total, times = sum(int(c.msgcount) for c in conns), []
+    for conn, t, _ in _messages(reader, path, conns):
+        times.append(t)
+        if progress and len(times) % 50 == 0:
+            progress(len(times), total, "finding scans")
+    return times
 
 
 def _messages(reader, path, connections):
