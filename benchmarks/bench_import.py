@@ -1,6 +1,6 @@
 """Import benchmark (issue 15): bag round-trip accuracy, drift flags, import speed and memory.
 
-    .venv/bin/python benchmarks/bench_import.py [--accuracy] [--speed] [--memory] [--seeds 3]
+    .venv/bin/python benchmarks/bench_import.py [--accuracy] [--speed] [--memory] [--off] [--seeds 3]
         [--big-gb 2.0] [--tmp /tmp]
 
 accuracy: synth (drift preset) -> ROS 2 MCAP bag and ROS 1 bag -> ``sonarcal import`` ->
@@ -12,6 +12,7 @@ cameras, imported in a child process (target <= 60 s on 2 cores; wall and CPU ti
 memory: peak RSS (VmHWM of the import process) for a ~0.5 GB and a ~2 GB bag with the same
 scans (more frames per scan): bounded memory means the two peaks are about equal. The bags
 are written to --tmp and deleted afterwards.
+off: load time and memory growth of a 1M-point ProScan .off file (strict, chunked parse).
 """
 
 from __future__ import annotations
@@ -178,16 +179,50 @@ def memory(tmp: Path, big_gb: float) -> None:
     print(f"\nload average: {loadavg()}")
 
 
+OFF_CHILD = r"""
+import sys, time
+from calib_core.io.clouds import load_cloud
+def hwm():
+    return int(next(l for l in open("/proc/self/status") if l.startswith("VmHWM:")).split()[1]) / 1024
+before = hwm(); t = time.perf_counter(); c = load_cloud(sys.argv[1]); dt = time.perf_counter() - t
+print(len(c), dt, hwm() - before)
+"""
+
+
+def off_files(tmp: Path, n: int = 1_000_000) -> None:
+    """ProScan .off load time and memory growth (a child process per load)."""
+    print(f"\n### ProScan .off: {n} points (X Y Z R G B A rows)")
+    print("| file MB | load s | memory growth MB | points/s |")
+    print("|---|---|---|---|")
+    rng = np.random.default_rng(0)
+    path = Path(tempfile.mkdtemp(dir=tmp, prefix="bench_import_")) / "scan.off"
+    try:
+        pts = rng.normal(0, 3, (n, 3))
+        g = rng.integers(0, 256, n)
+        arr = np.column_stack([pts, g, g, g, np.full(n, 255)])
+        with open(path, "w") as f:
+            f.write(f"OFF\n{n} 0 0\n")
+            np.savetxt(f, arr, fmt=["%.4f"] * 3 + ["%d"] * 4)
+        out = subprocess.run([sys.executable, "-c", OFF_CHILD, str(path)], capture_output=True, text=True, check=True,
+                             env=dict(os.environ, PYTHONPATH=str(ROOT))).stdout.split()
+        k, dt, grow = int(out[0]), float(out[1]), float(out[2])
+        print(f"| {path.stat().st_size / 1e6:.0f} | {dt:.2f} | {grow:.0f} | {k / dt / 1e6:.2f} M |")
+    finally:
+        shutil.rmtree(path.parent, ignore_errors=True)
+    print(f"\nload average: {loadavg()}")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--accuracy", action="store_true")
     ap.add_argument("--speed", action="store_true")
     ap.add_argument("--memory", action="store_true")
+    ap.add_argument("--off", action="store_true", help="ProScan .off load time and memory")
     ap.add_argument("--seeds", type=int, default=3)
     ap.add_argument("--big-gb", type=float, default=2.0)
     ap.add_argument("--tmp", default=tempfile.gettempdir())
     a = ap.parse_args()
-    every = not (a.accuracy or a.speed or a.memory)
+    every = not (a.accuracy or a.speed or a.memory or a.off)
     tmp = Path(a.tmp)
     if a.accuracy or every:
         accuracy(list(range(1, a.seeds + 1)), tmp)
@@ -195,6 +230,8 @@ def main() -> None:
         speed(tmp)
     if a.memory or every:
         memory(tmp, a.big_gb)
+    if a.off or every:
+        off_files(tmp)
 
 
 if __name__ == "__main__":
