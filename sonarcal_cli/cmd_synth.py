@@ -46,6 +46,10 @@ def run(args) -> int:
         print(f"error: --scale {args.scale} is outside 0.05-2.0", file=sys.stderr)
         return 2
     out = Path(args.out)
+    bag = _bag_path(out, args) if args.bag else None
+    if bag is not None and bag.exists():
+        print(f"error: {bag}: bag path exists already (remove it or give --bag-path)", file=sys.stderr)
+        return 2
     if out.exists() and not out.is_dir():
         print(f"error: {out}: exists and is not a folder", file=sys.stderr)
         return 2
@@ -64,19 +68,19 @@ def run(args) -> int:
     with progress_bar(f"synth {args.preset}") as cb:
         generate_session(out, args.preset, args.seed, progress=cb, **overrides)
     console.print(f"wrote session {out} (preset {args.preset}, seed {args.seed}) with ground_truth.yaml")
-    if args.bag:
-        _write_bag(out, args)
+    if bag is not None:
+        _write_bag(out, bag, args)
     return 0
 
 
-def _write_bag(out: Path, args) -> None:
-    from calib_core.errors import SessionError
+def _bag_path(out: Path, args) -> Path:
+    default = {"ros2": f"{out}_ros2", "ros2-db3": f"{out}_db3", "ros1": f"{out}.bag"}[args.bag]
+    return Path(args.bag_path or default)
+
+
+def _write_bag(out: Path, path: Path, args) -> None:
     from calib_core.synth.bag import BACKGROUND_S, write_session_bag
 
-    default = {"ros2": f"{out}_ros2", "ros2-db3": f"{out}_db3", "ros1": f"{out}.bag"}[args.bag]
-    path = Path(args.bag_path or default)
-    if path.exists():
-        raise SessionError(path, "bag path exists already (remove it or give --bag-path)")
     with progress_bar(f"bag {args.bag}") as cb:
         write_session_bag(out, path, args.bag, seed=args.seed, progress=cb)
     console.print(f"wrote {args.bag} bag {path} (background frames in the first {BACKGROUND_S:g} s: "

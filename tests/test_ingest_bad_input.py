@@ -174,3 +174,17 @@ def test_camera_info_topic_without_messages_and_bad_name(tmp_path, capsys):
     rc, err = _run(capsys, bag, "--out", tmp_path / "s", "--diameter", 0.2, "--camera-topic", "../x=/cam1/image_raw")
     assert rc == 2 and "camera name" in err
     assert not (tmp_path / "s").exists()
+
+
+def test_synth_writes_a_bag_beside_the_session(tmp_path, capsys):
+    out = tmp_path / "q"
+    assert main(["synth", str(out), "--preset", "quick", "--scale", "0.1", "--bag", "ros1"]) == 0
+    bag = tmp_path / "q.bag"
+    assert bag.is_file() and not [p for p in tmp_path.iterdir() if p.name.startswith(".")]
+    capsys.readouterr()
+    assert main(["import", str(bag), "--list"]) == 0
+    listing = capsys.readouterr().out
+    assert "/sonar/points" in listing and "/cam1/image_raw" in listing
+    rc = main(["synth", str(tmp_path / "q2"), "--preset", "quick", "--scale", "0.1", "--bag", "ros1",
+               "--bag-path", str(bag)])
+    assert rc == 2 and "exists already" in capsys.readouterr().err
