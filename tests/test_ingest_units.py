@@ -107,3 +107,15 @@ def test_off_strict(tmp_path, text, expect):
 def test_off_huge_count_is_refused_before_allocating(tmp_path):
     with pytest.raises(SessionError, match="too small"):
         load_cloud(_write(tmp_path / "big.off", "OFF\n900000000000 0 0\n1 2 3 4 5 6 7\n"))
+
+
+def test_camera_names_from_topics():
+    from calib_core.ingest.bag import camera_name
+
+    assert camera_name("/cam1/image_raw", set()) == "cam1"
+    assert camera_name("/cam1/image_raw/compressed", set()) == "cam1"
+    assert camera_name("/stereo/left/image_raw", set()) == "stereo_left"
+    assert camera_name("/camera/color/image_raw", set()) == "camera"
+    assert camera_name("/image_raw", set()) == "cam"
+    assert camera_name("/cam1/image_raw", {"cam1"}) == "cam1_2"
+    assert camera_name("/we ird:name/image", set()) == "we_ird_name"

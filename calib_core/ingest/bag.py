@@ -102,11 +102,14 @@ def _check_topic(path, rows: list[TopicRow], topic: str, types: tuple[str, ...])
         raise SessionError(path, f"topic '{topic}' is {by[topic].msgtype}, expected {' or '.join(types)}")
 
 
+GENERIC_TOPIC_WORDS = ("image_raw", "image", "compressed", "image_color", "image_rect", "image_rect_color", "color",
+                       "rgb")
+
+
 def camera_name(topic: str, taken: set[str]) -> str:
-    """``/cam1/image_raw`` -> ``cam1``; a unique, session-safe name."""
-    parts = [p for p in topic.split("/") if p and p not in ("image_raw", "image", "compressed", "image_color",
-                                                             "image_rect", "image_rect_color")]
-    base = re.sub(r"[^A-Za-z0-9_-]", "_", parts[0] if parts else "cam") or "cam"
+    """``/cam1/image_raw`` -> ``cam1``, ``/stereo/left/image_raw`` -> ``stereo_left``: unique and session-safe."""
+    parts = [p for p in topic.split("/") if p and p not in GENERIC_TOPIC_WORDS]
+    base = re.sub(r"[^A-Za-z0-9_-]", "_", "_".join(parts) if parts else "cam")[:60] or "cam"
     name, i = base, 2
     while name in taken:
         name, i = f"{base}_{i}", i + 1
