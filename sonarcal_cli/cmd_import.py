@@ -42,6 +42,9 @@ def add_parser(sub) -> None:
     p.add_argument("--tolerance-m", type=float, default=TOLERANCE_M,
                    help=f"... or more metres across the view than this (default {TOLERANCE_M})")
     p.add_argument("--drop-moved", action="store_true", help="leave flagged captures out of the session")
+    p.add_argument("--median", type=int, default=1, metavar="N",
+                   help="write the pixel-wise median of the N frames nearest mid-scan (still targets only; "
+                        "default 1: the mid-scan frame)")
     p.add_argument("--name", help="session name (default: the source's name)")
     p.add_argument("--sonar-model", help="sonar model text for session.yaml")
     p.set_defaults(run=run)
@@ -91,6 +94,8 @@ def _options(args):
         except ValueError:
             raise SessionError(None, f"--background {args.background!r}: expected START:END in seconds") from None
         window = (a, b)
+    if not 1 <= args.median <= 25:
+        raise SessionError(None, f"--median {args.median}: use 1-25 frames")
     for flag in ("gap_seconds", "scan_seconds"):
         v = getattr(args, flag)
         if v is not None and not v > 0:
@@ -98,7 +103,7 @@ def _options(args):
     return ImportOptions(diameter_m=args.diameter, sonar_topic=args.sonar_topic, camera_topics=args.camera_topic,
                          intrinsics=intr, split=args.split, gap_seconds=args.gap_seconds,
                          scan_seconds=args.scan_seconds, background_window_s=window, tolerance_px=args.tolerance_px,
-                         tolerance_m=args.tolerance_m, drop_moved=args.drop_moved, name=args.name,
+                         tolerance_m=args.tolerance_m, drop_moved=args.drop_moved, median=args.median, name=args.name,
                          sonar_model=args.sonar_model)
 
 

@@ -120,3 +120,25 @@ def test_workbench_shows_the_track(synth, imported):
         assert wb.motion_panel.md.content.count("MOVED") == 1
     finally:
         wb.stop()
+
+
+def test_median_of_frames_for_still_captures(synth, tmp_path):
+    """--median 5: a still capture gets the median of its 5 frames (the still and 4 noisy copies:
+    within 1 DN of the still); the drifting one keeps its mid-scan frame."""
+    root, folder, _, drift_id = synth
+    bag = root / "bag_ros2"
+    if not bag.exists():
+        write_session_bag(folder, bag, "ros2", seed=SEED)
+    out = tmp_path / "median"
+    assert main(["import", str(bag), "--out", str(out), "--diameter", str(load_session(folder).sphere_diameter_m),
+                 "--background", "0:2", "--median", "5"]) == 0
+    a, b = load_session(folder), load_session(out)
+    motion = b.raw["target_motion"]["captures"]
+    for ca, cb in zip(a.captures, b.captures):
+        how = motion[cb.id]["cameras"]["cam1"]["image"]
+        if cb.id == drift_id:
+            assert how == "mid-scan frame"
+            continue
+        assert how == "median of 5 frames"
+        diff = np.abs(load_image(ca.image_paths["cam1"]).astype(int) - load_image(cb.image_paths["cam1"]).astype(int))
+        assert 0 < diff.mean() < 1.0 and diff.max() <= 6

@@ -36,6 +36,7 @@ class ImportOptions:
     tolerance_m: float = TOLERANCE_M
     id_prefix: str = "p"
     drop_moved: bool = False
+    median: int = 1
     name: str | None = None
     sonar_model: str | None = None
 

@@ -33,7 +33,8 @@ def import_bag(source, out, opts: ImportOptions, progress=None) -> ImportResult:
         windows, rule = split_scans(times, opts.split, opts.gap_seconds, opts.scan_seconds)
         t0 = int(reader.start_time)
         topic_cam = {c.image_topic: c.name for c in cams}
-        keeper = FrameKeeper(models, opts.diameter_m / 2, windows, t0, opts.tolerance_px, opts.tolerance_m)
+        keeper = FrameKeeper(models, opts.diameter_m / 2, windows, t0, opts.tolerance_px, opts.tolerance_m,
+                             opts.median)
         with StagedSession(out) as st:
             asm = Assembler(st, opts, windows, t0)
             cam_entries = {c.name: {"intrinsics": st.intrinsics(c.name, models[c.name])} for c in cams}

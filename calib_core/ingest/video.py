@@ -67,7 +67,8 @@ def import_video(video: Path, scans_csv: Path, camera: str, out, opts: ImportOpt
         raise SessionError(video, f"a video needs the camera's intrinsics: --intrinsics {camera}=FILE")
     model = load_intrinsics(opts.intrinsics[camera])
     windows = [ScanWindow(int(a * NS), int(b * NS), 1) for _, a, b, _ in rows]
-    keeper = FrameKeeper({camera: model}, opts.diameter_m / 2, windows, 0, opts.tolerance_px, opts.tolerance_m)
+    keeper = FrameKeeper({camera: model}, opts.diameter_m / 2, windows, 0, opts.tolerance_px, opts.tolerance_m,
+                         opts.median)
     cap = cv2.VideoCapture(str(video))
     if not video.is_file() or not cap.isOpened():
         raise SessionError(video, "cannot open video (missing, corrupt or unsupported codec)")
