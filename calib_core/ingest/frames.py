@@ -47,9 +47,11 @@ class FrameKeeper:
                                      hint_uv_px=prev, hint_radius_px=prev_r)
         tr.add((t_ns - self.t0) / NS, det)
         near = st.best.setdefault(cam, [])
-        near.append((abs(t_ns - self.windows[scan].mid_ns), len(tr.t_s) - 1, image_rgb.copy()))
-        near.sort(key=lambda x: x[:2])
-        del near[self.median:]
+        dt = abs(t_ns - self.windows[scan].mid_ns)
+        if len(near) < self.median or dt < near[-1][0]:
+            near.append((dt, len(tr.t_s) - 1, image_rgb.copy()))
+            near.sort(key=lambda x: x[:2])
+            del near[self.median:]
 
     def take(self, scan: int) -> tuple[dict[str, np.ndarray], dict | None]:
         """(camera -> kept frame, target_motion entry) of a finished scan; forgets the scan."""
