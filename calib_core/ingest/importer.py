@@ -50,10 +50,10 @@ def import_bag(source, out, opts: ImportOptions, progress=None) -> ImportResult:
                         acc.setdefault(i, []).append(_decode(reader, source, conn, t, t0, raw, rosmsg.cloud_from_msg))
                 else:
                     _image(reader, source, conn, t, t0, raw, i, topic_cam[conn.topic], keeper, bg, frame_ids)
-                _flush(asm, keeper, acc, windows, t, bg)
+                _flush(asm, keeper, acc, windows, t)
                 if progress and n % 20 == 0:
                     progress(n, total, conn.topic)
-            _flush(asm, keeper, acc, windows, None, bg)
+            _flush(asm, keeper, acc, windows, None)
             for cam, rel in bg.write(st).items():
                 cam_entries[cam]["background"] = rel
             src = {"kind": "ros1-bag" if source.suffix == ".bag" else "ros2-bag", "path": str(source.absolute()),
@@ -153,7 +153,7 @@ def _camera_models(reader, path, cams, opts: ImportOptions, conns) -> dict:
     return models
 
 
-def _flush(asm: Assembler, keeper: FrameKeeper, acc: dict, windows, t_ns, bg) -> None:
+def _flush(asm: Assembler, keeper: FrameKeeper, acc: dict, windows, t_ns) -> None:
     """Write every scan that ended before ``t_ns`` (all open scans when None)."""
     for i in range(len(windows)):
         if i in asm.done or (t_ns is not None and windows[i].end_ns >= t_ns):
