@@ -3,7 +3,8 @@
     .venv/bin/python benchmarks/bench_import.py [--accuracy] [--speed] [--memory] [--off] [--seeds 3]
         [--big-gb 2.0] [--tmp /tmp]
 
-accuracy: synth (drift preset) -> ROS 2 MCAP bag and ROS 1 bag -> ``sonarcal import`` ->
+accuracy: synth (drift preset; --canal adds the two-camera canal preset, whose stereo transform
+travels as /tf_static) -> ROS 2 MCAP bag and ROS 1 bag -> ``sonarcal import`` ->
 calibrate, against the folder session, on several seeds: pose errors versus ground truth,
 the ratio to the folder's error (target <= 1.10), and which captures were flagged as moved
 (target: exactly the drifting one).
@@ -44,45 +45,63 @@ def loadavg() -> str:
 
 
 # ---- accuracy ----------------------------------------------------------------------------
-def accuracy(seeds: list[int], tmp: Path) -> None:
+def _errors(folder: Path, gt: dict) -> dict:
+    """{camera: (rotation error deg, translation error mm)} of a calibration against the truth."""
     from calib_core.detections import load_detections
     from calib_core.geometry import pose_error
     from calib_core.session import load_session
     from calib_core.solve.calibrate import calibrate_session
+
+    s = load_session(folder)
+    cal = calibrate_session(s, load_detections(s), {"leave_one_out": False})
+    out = {}
+    for cam, c in cal["cameras"].items():
+        r, t = pose_error(np.asarray(c["T_cam_sonar"]), np.asarray(gt["cameras"][cam]["T_cam_sonar"]))
+        out[cam] = (float(np.degrees(r)), t * 1000)
+    return out
+
+
+def _round_trip(preset: str, seed: int, tmp: Path) -> None:
+    from calib_core.session import load_session
     from calib_core.synth.bag import write_session_bag
     from calib_core.synth.generate import generate_session
 
-    def errs(folder, T_true):
-        s = load_session(folder)
-        cal = calibrate_session(s, load_detections(s), {"leave_one_out": False})
-        r, t = pose_error(np.asarray(cal["cameras"]["cam1"]["T_cam_sonar"]), T_true)
-        return np.degrees(r), t * 1000
+    root = Path(tempfile.mkdtemp(dir=tmp, prefix="bench_import_"))
+    try:
+        folder = generate_session(root / "folder", preset, seed, scale=0.5)
+        gt = yaml.safe_load((folder / "ground_truth.yaml").read_text())
+        drift = [c for c, e in gt["captures"].items() if "drift" in e]
+        base = _errors(folder, gt)
+        for cam, (r0, t0) in base.items():
+            print(f"| {preset} {seed} | {cam} | folder | {r0:.3f} | {t0:.1f} | 1 | - | {', '.join(drift) or 'none'} | - |")
+        d = load_session(folder).sphere_diameter_m
+        for kind in ("ros2", "ros1"):
+            bag = write_session_bag(folder, root / ("b.bag" if kind == "ros1" else "b_ros2"), kind, seed=seed)
+            out = root / f"imp_{kind}"
+            subprocess.run([sys.executable, "-m", "sonarcal_cli.main", "import", str(bag), "--out", str(out),
+                            "--diameter", str(d), "--background", "0:2"], check=True, capture_output=True)
+            imported = load_session(out)
+            moved = [c for c, e in imported.raw["target_motion"]["captures"].items() if e["moved"]]
+            stereo = "stereo from /tf_static" if imported.stereo else ""
+            for cam, (r1, t1) in _errors(out, gt).items():
+                r0, t0 = base[cam]
+                ok = max(r1 / r0, t1 / t0) <= 1.10 and moved == drift
+                print(f"| {preset} {seed} | {cam} | {kind} bag {stereo} | {r1:.3f} | {t1:.1f} | {r1 / r0:.3f} / "
+                      f"{t1 / t0:.3f} | {', '.join(moved) or 'none'} | {', '.join(drift) or 'none'} | "
+                      f"{'met' if ok else 'MISSED'} |")
+    finally:
+        shutil.rmtree(root, ignore_errors=True)
 
-    print("\n### Bag round trip: synth (drift preset, scale 0.5) -> bag -> import -> calibrate")
-    print("| seed | source | rot err deg | trans err mm | ratio to folder (rot / trans) | flagged | drifting | target met |")
-    print("|---|---|---|---|---|---|---|---|")
+
+def accuracy(seeds: list[int], tmp: Path, canal: bool) -> None:
+    print("\n### Bag round trip: synth (scale 0.5) -> bag -> import -> calibrate")
+    print("| preset seed | camera | source | rot err deg | trans err mm | ratio to folder (rot / trans) | flagged | "
+          "drifting | target |")
+    print("|---|---|---|---|---|---|---|---|---|")
     for seed in seeds:
-        root = Path(tempfile.mkdtemp(dir=tmp, prefix="bench_import_"))
-        try:
-            folder = generate_session(root / "folder", "drift", seed, scale=0.5)
-            gt = yaml.safe_load((folder / "ground_truth.yaml").read_text())
-            drift = next(c for c, e in gt["captures"].items() if "drift" in e)
-            T_true = np.asarray(gt["cameras"]["cam1"]["T_cam_sonar"])
-            r0, t0 = errs(folder, T_true)
-            print(f"| {seed} | folder | {r0:.3f} | {t0:.1f} | 1 | - | {drift} | - |")
-            d = load_session(folder).sphere_diameter_m
-            for kind in ("ros2", "ros1"):
-                bag = write_session_bag(folder, root / ("b.bag" if kind == "ros1" else "b_ros2"), kind, seed=seed)
-                out = root / f"imp_{kind}"
-                subprocess.run([sys.executable, "-m", "sonarcal_cli.main", "import", str(bag), "--out", str(out),
-                                "--diameter", str(d), "--background", "0:2"], check=True, capture_output=True)
-                r1, t1 = errs(out, T_true)
-                moved = [c for c, e in load_session(out).raw["target_motion"]["captures"].items() if e["moved"]]
-                ok = max(r1 / r0, t1 / t0) <= 1.10 and moved == [drift]
-                print(f"| {seed} | {kind} bag | {r1:.3f} | {t1:.1f} | {r1 / r0:.3f} / {t1 / t0:.3f} | "
-                      f"{', '.join(moved) or 'none'} | {drift} | {'met' if ok else 'MISSED'} |")
-        finally:
-            shutil.rmtree(root, ignore_errors=True)
+        _round_trip("drift", seed, tmp)
+    if canal:
+        _round_trip("canal", 1, tmp)
     print(f"\nload average: {loadavg()}")
 
 
@@ -219,13 +238,14 @@ def main() -> None:
     ap.add_argument("--memory", action="store_true")
     ap.add_argument("--off", action="store_true", help="ProScan .off load time and memory")
     ap.add_argument("--seeds", type=int, default=3)
+    ap.add_argument("--canal", action="store_true", help="accuracy: also the two-camera canal preset (stereo)")
     ap.add_argument("--big-gb", type=float, default=2.0)
     ap.add_argument("--tmp", default=tempfile.gettempdir())
     a = ap.parse_args()
     every = not (a.accuracy or a.speed or a.memory or a.off)
     tmp = Path(a.tmp)
     if a.accuracy or every:
-        accuracy(list(range(1, a.seeds + 1)), tmp)
+        accuracy(list(range(1, a.seeds + 1)), tmp, a.canal)
     if a.speed or every:
         speed(tmp)
     if a.memory or every:
