@@ -28,7 +28,7 @@ def _bag(path: Path, kind="ros1", images=True, compressed_data=None, encoding="r
                 continue
             w.write("/cam1/camera_info", rosmsg.CAMERA_INFO, t, rosmsg.info_msg(ts, t, "cam1", CAM, r1))
             if compressed_data is not None:
-                msg = ts.types[rosmsg.COMPRESSED](header=rosmsg._header(ts, t, "cam1", r1), format="jpeg",
+                msg = ts.types[rosmsg.COMPRESSED](header=rosmsg.header_msg(ts, t, "cam1", r1), format="jpeg",
                                                   data=np.frombuffer(compressed_data, np.uint8))
                 w.write("/cam1/image_raw/compressed", rosmsg.COMPRESSED, t, msg)
             else:

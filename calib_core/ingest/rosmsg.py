@@ -130,7 +130,7 @@ def camera_from_info(msg, name: str) -> CameraModel:
 
 
 # ---- building (synthetic bags) ------------------------------------------------------
-def _header(ts, stamp: int, frame: str, ros1: bool):
+def header_msg(ts, stamp: int, frame: str, ros1: bool):
     t = ts.types["builtin_interfaces/msg/Time"](sec=stamp // 1_000_000_000, nanosec=stamp % 1_000_000_000)
     H = ts.types["std_msgs/msg/Header"]
     return H(seq=0, stamp=t, frame_id=frame) if ros1 else H(stamp=t, frame_id=frame)
@@ -146,20 +146,20 @@ def cloud_msg(ts, stamp: int, frame: str, points_m: np.ndarray, intensity: np.nd
     if intensity is not None:
         rec["intensity"] = intensity
     fields = [PF(name=n, offset=4 * i, datatype=7, count=1) for i, n in enumerate(names)]
-    return ts.types[POINTCLOUD2](header=_header(ts, stamp, frame, ros1), height=1, width=len(rec), fields=fields,
+    return ts.types[POINTCLOUD2](header=header_msg(ts, stamp, frame, ros1), height=1, width=len(rec), fields=fields,
                                  is_bigendian=False, point_step=rec.itemsize, row_step=rec.nbytes,
                                  data=rec.view(np.uint8).ravel(), is_dense=True)
 
 
 def image_msg(ts, stamp: int, frame: str, image_rgb: np.ndarray, ros1: bool):
     h, w = image_rgb.shape[:2]
-    return ts.types[IMAGE](header=_header(ts, stamp, frame, ros1), height=h, width=w, encoding="rgb8",
+    return ts.types[IMAGE](header=header_msg(ts, stamp, frame, ros1), height=h, width=w, encoding="rgb8",
                            is_bigendian=0, step=3 * w, data=np.ascontiguousarray(image_rgb, np.uint8).ravel())
 
 
 def compressed_msg(ts, stamp: int, frame: str, image_rgb: np.ndarray, ros1: bool, quality: int = 92):
     ok, buf = cv2.imencode(".jpg", cv2.cvtColor(image_rgb, cv2.COLOR_RGB2BGR), [cv2.IMWRITE_JPEG_QUALITY, quality])
-    return ts.types[COMPRESSED](header=_header(ts, stamp, frame, ros1), format="jpeg", data=buf.ravel())
+    return ts.types[COMPRESSED](header=header_msg(ts, stamp, frame, ros1), format="jpeg", data=buf.ravel())
 
 
 def info_msg(ts, stamp: int, frame: str, cam: CameraModel, ros1: bool):
@@ -169,5 +169,5 @@ def info_msg(ts, stamp: int, frame: str, cam: CameraModel, ros1: bool):
     arrays = dict(d=np.asarray(cam.dist, float), k=cam.K.ravel().astype(float), r=np.eye(3).ravel(), p=P)
     if ros1:
         arrays = {k.upper(): v for k, v in arrays.items()}
-    return ts.types[CAMERA_INFO](header=_header(ts, stamp, frame, ros1), height=cam.height_px, width=cam.width_px,
+    return ts.types[CAMERA_INFO](header=header_msg(ts, stamp, frame, ros1), height=cam.height_px, width=cam.width_px,
                                  distortion_model="plumb_bob", binning_x=0, binning_y=0, roi=roi, **arrays)

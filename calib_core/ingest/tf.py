@@ -13,6 +13,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from calib_core.geometry import invert_T, make_T
+from calib_core.ingest.rosmsg import header_msg
 
 
 def edges_from_msgs(msgs) -> dict[tuple[str, str], np.ndarray]:
@@ -49,13 +50,11 @@ def transform_between(edges: dict, target: str, source: str) -> np.ndarray | Non
 
 def tf_static_msg(ts, stamp: int, parent: str, child: str, T_parent_child: np.ndarray, ros1: bool):
     """A TFMessage with one transform (for synthetic bags)."""
-    from calib_core.ingest.rosmsg import _header
-
     q = Rotation.from_matrix(T_parent_child[:3, :3]).as_quat()
     t = T_parent_child[:3, 3]
     tr = ts.types["geometry_msgs/msg/Transform"](
         translation=ts.types["geometry_msgs/msg/Vector3"](x=float(t[0]), y=float(t[1]), z=float(t[2])),
         rotation=ts.types["geometry_msgs/msg/Quaternion"](x=float(q[0]), y=float(q[1]), z=float(q[2]), w=float(q[3])))
-    st = ts.types["geometry_msgs/msg/TransformStamped"](header=_header(ts, stamp, parent, ros1), child_frame_id=child,
+    st = ts.types["geometry_msgs/msg/TransformStamped"](header=header_msg(ts, stamp, parent, ros1), child_frame_id=child,
                                                         transform=tr)
     return ts.types["tf2_msgs/msg/TFMessage"](transforms=[st])
