@@ -122,23 +122,23 @@ def test_workbench_shows_the_track(synth, imported):
         wb.stop()
 
 
-def test_median_of_frames_for_still_captures(synth, tmp_path):
+def test_median_of_frames_and_drop_moved(synth, tmp_path):
     """--median 5: a still capture gets the median of its 5 frames (the still and 4 noisy copies:
-    within 1 DN of the still); the drifting one keeps its mid-scan frame."""
+    within 1 DN of the still); --drop-moved leaves the drifting capture out, saying why."""
     root, folder, _, drift_id = synth
     bag = root / "bag_ros2"
     if not bag.exists():
         write_session_bag(folder, bag, "ros2", seed=SEED)
     out = tmp_path / "median"
     assert main(["import", str(bag), "--out", str(out), "--diameter", str(load_session(folder).sphere_diameter_m),
-                 "--background", "0:2", "--median", "5"]) == 0
+                 "--background", "0:2", "--median", "5", "--drop-moved"]) == 0
     a, b = load_session(folder), load_session(out)
+    assert [c.id for c in b.captures] == [c.id for c in a.captures if c.id != drift_id]
+    assert b.raw["source"]["captures"][drift_id]["skipped"] == "target moved during the scan"
     motion = b.raw["target_motion"]["captures"]
-    for ca, cb in zip(a.captures, b.captures):
-        how = motion[cb.id]["cameras"]["cam1"]["image"]
-        if cb.id == drift_id:
-            assert how == "mid-scan frame"
-            continue
-        assert how == "median of 5 frames"
+    assert motion[drift_id]["moved"] and motion[drift_id]["cameras"]["cam1"]["image"] == "mid-scan frame"
+    for cb in b.captures:
+        ca = a.capture(cb.id)
+        assert motion[cb.id]["cameras"]["cam1"]["image"] == "median of 5 frames"
         diff = np.abs(load_image(ca.image_paths["cam1"]).astype(int) - load_image(cb.image_paths["cam1"]).astype(int))
         assert 0 < diff.mean() < 1.0 and diff.max() <= 6
