@@ -105,8 +105,10 @@ def test_off_strict(tmp_path, text, expect):
 
 
 def test_off_huge_count_is_refused_before_allocating(tmp_path):
-    with pytest.raises(SessionError, match="too small"):
+    with pytest.raises(SessionError, match="more than the"):
         load_cloud(_write(tmp_path / "big.off", "OFF\n900000000000 0 0\n1 2 3 4 5 6 7\n"))
+    with pytest.raises(SessionError, match="too small"):
+        load_cloud(_write(tmp_path / "small.off", "OFF\n90000 0 0\n1 2 3 4 5 6 7\n"))
 
 
 def test_camera_names_from_topics():

@@ -13,6 +13,7 @@ import io
 import cv2
 import numpy as np
 
+from calib_core import MAX_IMAGE_PIXELS
 from calib_core.camera import CameraModel
 
 POINTCLOUD2 = "sensor_msgs/msg/PointCloud2"
@@ -21,7 +22,7 @@ COMPRESSED = "sensor_msgs/msg/CompressedImage"
 CAMERA_INFO = "sensor_msgs/msg/CameraInfo"
 TF_STATIC = "tf2_msgs/msg/TFMessage"
 IMAGE_TYPES = (IMAGE, COMPRESSED)
-MAX_PIXELS = 80_000_000  # larger than any camera frame; guards against decompression bombs
+MAX_PIXELS = MAX_IMAGE_PIXELS  # the project's image limit; guards against decompression bombs
 
 _PF_DTYPES = {1: "i1", 2: "u1", 3: "i2", 4: "u2", 5: "i4", 6: "u4", 7: "f4", 8: "f8"}
 _INTENSITY_NAMES = ("intensity", "intensities", "i", "reflectance")

@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from calib_core.errors import SessionError
+from calib_core.io.las_header import MAX_CLOUD_POINTS
 
 MIN_ROW_BYTES = 14  # "0 0 0 0 0 0 0\n"
 CHUNK_ROWS = 200_000
@@ -26,6 +27,8 @@ def read_off(path: Path) -> tuple[np.ndarray, np.ndarray]:
     path = Path(path)
     with open(path, "rb") as f:
         n, n_faces = _header(path, f)
+        if n > MAX_CLOUD_POINTS:
+            raise SessionError(path, f"header claims {n} points: more than the {MAX_CLOUD_POINTS} this tool loads")
         if n * MIN_ROW_BYTES > path.stat().st_size:
             raise SessionError(path, f"header declares {n} points but the file is too small to hold them (truncated?)")
         pts, inten = np.empty((n, 3)), np.empty(n)
