@@ -24,6 +24,7 @@ from calib_core import __version__
 from calib_core.errors import SessionError
 from calib_core.markup import escape_html
 from calib_core.report_captures import CaptureView, ReportOptions, calibrated_T, capture_view, range_scale
+from calib_core.report_motion import motion_section
 from calib_core.report_svg import bar_chart, scatter_residuals, sigma_chart
 
 __all__ = ["ReportOptions", "build_report", "write_report"]
@@ -290,7 +291,7 @@ def build_report(session, calibration: dict | None, detections: dict | None = No
              "run 'sonarcal detect' or review in the workbench to record them).</p>" if from_cal else
              "" if detections else "<p class='warn'>No detections.yaml yet: run 'sonarcal detect' (or review in the "
                                    "workbench) to record detections and their status history.</p>",
-             _detections(session, detections, views),
+             _detections(session, detections, views), motion_section(session),
              "<h2>Segmentation by the reprojected cloud (paper Fig. 3)</h2>", seg,
              "<h2>Cloud coloured from the images (paper Figs. 4-5)</h2>", col]
     return (f"<!DOCTYPE html><html lang='en'><head><meta charset='utf-8'><title>sonarcal report: {_e(session.name)}</title>"

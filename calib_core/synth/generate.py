@@ -19,6 +19,7 @@ from calib_core.io.images import save_image
 from calib_core.io.intrinsics import save_intrinsics_ros
 from calib_core.synth import range_scenes, world
 from calib_core.synth.camera_render import RenderOptions, finish_image, render_radiance
+from calib_core.synth.drift import drift_positions, write_drift_frames
 from calib_core.synth.ground_truth import GT_FILE, GT_FORMAT, to_list
 from calib_core.synth.presets import get_preset
 from calib_core.synth.range_capture import in_field, sensor_config, simulate_range
@@ -95,6 +96,7 @@ def generate_session(out_dir, preset, seed: int, progress=None, **overrides) -> 
             if ok_extra(cand) and sphere_in_image(cam0, invert_T(T_wc0), cand, radius, 2.0):
                 image_centers[moved_idx] = cand
                 break
+    drift_idx = int(r_rig.integers(P.n_captures)) if P.drift_m > 0 else -1
     if seabed_z is not None:
         static += world.seabed_scene(r_scene, rig, seabed_z, centers + image_centers)
     if floor_z is not None:
@@ -151,6 +153,10 @@ def generate_session(out_dir, preset, seed: int, progress=None, **overrides) -> 
         manifest_caps.append({"id": cid, "cloud": f"clouds/{cid}{ext}", "images": images})
         gt_caps[cid] = _capture_truth(rig, img_scene, radius, centers[k] if is_target else None,
                                       image_centers[k] if is_target else None)
+        if k == drift_idx:  # the drift preset: frames recorded while the sphere drifts
+            gt_caps[cid]["drift"] = write_drift_frames(
+                out, cid, rig, lambda c: Scene(tuple(static + target_parts(c, np.random.default_rng([seed, 5, k])) + extra)),
+                drift_positions(r_cap, centers[k], P.drift_m), water, opts, r_cap, P.jpeg_quality)
 
     # ---- backgrounds, intrinsics, manifest, truth ------------------------------------
     bg_scene = Scene(tuple(static))

@@ -31,6 +31,8 @@ class Preset:
         (wrong-diameter test: ~30 % too big or too small).
     cloud_format: suffix of the cloud files (".ply", ".pcd", ".npy", ".xyz").
     scale: image resolution factor (1.0 = 1920x1080); K scales with it.
+    drift_m: one capture's sphere drifts this far (m) during its scan; the session then holds
+        ``frames/<cam>/<id>_<j>.jpg`` recorded during that scan (a bag written from it shows the drift).
     corner_fraction: share of captures aimed near an image corner.
     """
 
@@ -62,6 +64,7 @@ class Preset:
     holder: str = ""
     solid_ball: bool = False
     diameter_range: tuple = (0.18, 0.30)
+    drift_m: float = 0.0
 
     def with_(self, **changes) -> "Preset":
         """A copy with some fields changed (e.g. ``scale=0.25`` for fast tests)."""
@@ -101,6 +104,8 @@ _LIST = [
     Preset("seabed-slab", "sonar; the mesh sphere resting on a flat slab on the seabed (the slab reaches well "
            "past the sphere on every side)", n_captures=8, pan_step_deg=0.75, scene="seabed", holder="table",
            cloud_format=".npy"),
+    Preset("drift", "one capture's sphere drifts 8 cm during its scan (frames recorded during the scan; "
+           "for bag round trips and the target-motion check)", n_captures=6, pan_step_deg=1.0, drift_m=0.08),
 ]
 
 PRESETS: dict[str, Preset] = {p.name: p for p in _LIST}
