@@ -35,6 +35,12 @@ REFERENCE = ROOT / "benchmarks" / "data" / "kinectnet_centres.yaml"
 TOL_PX = 3.0
 
 
+def reason_class(reason: str) -> str:
+    """A refusal's kind without its numbers and places (for counting)."""
+    r = reason.split(" at (")[0].split(":")[0]
+    return "".join(ch if not ch.isdigit() and ch != "." else "" for ch in r).replace("  ", " ").strip()
+
+
 def _find_session(arg: str | None) -> Path | None:
     for p in ([Path(arg)] if arg else [DEFAULT_SESSION, Path("/work/shared/data/kinectnet-dev")]):
         if (p / "session.yaml").is_file():
@@ -67,7 +73,7 @@ def run(session_dir: Path, listing: bool = False) -> dict:
             elif det.found:
                 st["false"] += 1
             elif whole:
-                st["miss"][det.reason] += 1
+                st["miss"][reason_class(det.reason)] += 1
             if listing:
                 e = f"{err:7.2f}" if err is not None else "      -"
                 print(f"{cam} {cap.id} {r['flag']:6s} found={det.found!s:5s} err={e} "

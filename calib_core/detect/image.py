@@ -9,8 +9,9 @@ Main entry: :func:`detect_sphere_in_image`. Steps:
    silhouette cone in undistorted normalised coordinates (:mod:`.image_fit`, :mod:`.image_cone`);
    the sphere centre's perspective projection follows exactly from the cone axis (then the lens
    distortion gives raw pixels), and the known radius gives the range;
-3. a verdict: one good candidate -> found; none -> "no sphere" / "sphere cut by the image
-   border" / ...; two good ones -> "two candidates" (never a guess).
+3. a verdict: one good candidate -> found; none -> the reason ("no round outline" / "sphere cut by the image
+   border" / "outline 40 % hidden or too faint at (u, v)" ...); two good ones -> "two round
+   objects: (u, v) and (u, v)" (never a guess).
 
 ``method="hough-circle"`` is the paper's baseline (Canny + Hough circle, circle centre) on the
 same candidate region, for comparison.
@@ -97,6 +98,48 @@ def _not_found(reason: str, method: str, **extras) -> ImageDetection:
     return ImageDetection(found=False, reason=reason, method=method, extras=extras)
 
 
+NO_OUTLINE = "no round outline"
+CUT = "sphere cut by the image border"
+
+
+def two_objects_reason(centres_uv_px) -> str:
+    """'two round objects: (u, v) and (u, v)' (the operator-readable refusal)."""
+    pts = " and ".join(f"({c[0]:.0f}, {c[1]:.0f})" for c in centres_uv_px)
+    return f"two round objects: {pts}"
+
+
+def _refusal(fits, cands, method) -> ImageDetection:
+    """Why no candidate was accepted, in an operator's words: cut by the border, the best
+    round outline's problem (hidden part, not round, inside a larger object), or none."""
+    cut = [f for c, f in fits if f.reason == CUT]
+    if cut:
+        # the partial fit is often still good: keep it for an operator to confirm
+        best = max(cut, key=lambda f: f.support)
+        return _not_found(CUT, method, candidates=len(cands),
+                          partial_center_uv_px=[round(float(v), 2) for v in best.centre_uv_px])
+    if any(c.touches_border and c.source == "background" and f.fit is None for c, f in fits):
+        return _not_found(CUT, method, candidates=len(cands))
+    near = [f for _, f in fits if f.fit is not None and f.reason and f.support >= 0.3]
+    if near:
+        best = max(near, key=lambda f: f.support)
+        u, v = best.centre_uv_px
+        return _not_found(f"{best.reason} at ({u:.0f}, {v:.0f})", method, candidates=len(cands),
+                          rejected=sorted({f.reason for _, f in fits if f.reason}))
+    return _not_found(NO_OUTLINE, method, candidates=len(cands),
+                      rejected=sorted({f.reason for _, f in fits if f.reason}))
+
+
+def _evidence(f) -> float:
+    """Weight of a fitted round outline: its score times the outline length it explains (px).
+    Clutter makes small round outlines far more often than large ones, so a small round
+    thing (a knob, a lamp) does not make a clear, large sphere outline ambiguous."""
+    return f.score * f.support * _perimeter(f.silhouette_px)
+
+
+def _perimeter(sil: np.ndarray) -> float:
+    return float(np.linalg.norm(np.diff(np.vstack([sil, sil[:1]]), axis=0), axis=1).sum())
+
+
 def _ellipse_px(sil: np.ndarray) -> tuple:
     """((cx, cy), (major, minor) full axis lengths, angle_deg) of an outline (OpenCV style)."""
     (cx, cy), (a, b), ang = cv2.fitEllipse(sil.astype(np.float32))
@@ -179,7 +222,7 @@ def detect_sphere_in_image(image_rgb: np.ndarray, cam: CameraModel, sphere_radiu
         cands = _hint_candidates(cands, hint_uv_px, hint_radius_px, r_bounds)
     t_region = time.perf_counter()
     if not cands:
-        return _not_found("no sphere", method, candidates=0)
+        return _not_found(NO_OUTLINE, method, candidates=0)
 
     rng = np.random.default_rng(seed)
     # candidates touching the border are tried last (a sphere there is cut anyway), at most 2
@@ -210,23 +253,13 @@ def detect_sphere_in_image(image_rgb: np.ndarray, cam: CameraModel, sphere_radiu
             good.append((c, f))
     timing = {"region_ms": round(1e3 * (t_region - t0), 2)}
     if not good:
-        cut = [f for c, f in fits if f.reason == "sphere cut by the image border"]
-        if cut:
-            # the partial fit is often still good: keep it for an operator to confirm
-            best = max(cut, key=lambda f: f.support)
-            return _not_found("sphere cut by the image border", method, candidates=len(cands),
-                              partial_center_uv_px=[round(float(v), 2) for v in best.centre_uv_px])
-        if any(c.touches_border and c.source == "background" and f.fit is None for c, f in fits):
-            reason = "sphere cut by the image border"
-        else:
-            reason = "no sphere"
-        return _not_found(reason, method, candidates=len(cands),
-                          rejected=sorted({f.reason for _, f in fits if f.reason}))
-    good.sort(key=lambda cf: -cf[1].score)
-    if len(good) > 1 and hint_uv_px is None and good[1][1].score >= 0.5 * good[0][1].score:
+        return _refusal(fits, cands, method)
+    good.sort(key=lambda cf: -_evidence(cf[1]))
+    if len(good) > 1 and hint_uv_px is None and _evidence(good[1][1]) >= 0.5 * _evidence(good[0][1]):
         # both kept (u, v, range_m): a caller with another clue (the sonar's range, a click)
         # can choose; the detector does not guess
-        return _not_found("two candidates", method, candidates=len(cands), two_candidates=[
+        return _not_found(two_objects_reason([f.centre_uv_px for _, f in good[:3]]), method,
+                          candidates=len(cands), two_candidates=[
             [round(float(f.centre_uv_px[0]), 2), round(float(f.centre_uv_px[1]), 2), round(f.range_m, 4)]
             for _, f in good[:3]])
     cand, f = good[0]
