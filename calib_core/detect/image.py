@@ -29,6 +29,7 @@ import numpy as np
 from calib_core.camera import CameraModel
 from calib_core.detect.image_fit import CandidateFit, refine_candidate
 from calib_core.detect.image_hough import hough_circle
+from calib_core.detect.image_votes import candidates_by_votes
 from calib_core.detect.image_region import (Candidate, candidates_from_background,
                                             candidates_single_frame, choose_scale, downscale,
                                             radius_bounds_px)
@@ -155,6 +156,17 @@ def _inside(uv: np.ndarray, outline: np.ndarray) -> bool:
     return cv2.pointPolygonTest(outline.astype(np.float32), (float(uv[0]), float(uv[1])), False) > 0
 
 
+def _merge_candidates(first: list[Candidate], then: list[Candidate]) -> list[Candidate]:
+    """Round-outline votes first (they place centre and size well), then the region-contrast
+    candidates that are not the same object."""
+    out = list(first)
+    for c in then:
+        if not any(np.hypot(*(c.centre_px - o.centre_px)) < 0.5 * max(c.radius_px, o.radius_px)
+                   and 0.6 < c.radius_px / o.radius_px < 1.7 for o in out):
+            out.append(c)
+    return out
+
+
 def _hint_candidates(cands, hint_uv, hint_r, r_bounds):
     hint = np.asarray(hint_uv, float)
     near = [c for c in cands if np.hypot(*(c.centre_px - hint)) < 1.25 * c.radius_px + 20]
@@ -217,7 +229,8 @@ def detect_sphere_in_image(image_rgb: np.ndarray, cam: CameraModel, sphere_radiu
         cands, _ = candidates_from_background(small, background.small(s), s, r_bounds)
     else:
         bg = None
-        cands = candidates_single_frame(small, s, r_bounds, max_candidates=12)
+        cands = _merge_candidates(candidates_by_votes(small, s, r_bounds, max_candidates=5),
+                                  candidates_single_frame(small, s, r_bounds, max_candidates=12))
     if hint_uv_px is not None:
         cands = _hint_candidates(cands, hint_uv_px, hint_radius_px, r_bounds)
     t_region = time.perf_counter()

@@ -37,6 +37,10 @@ SYS_FRACTION = 0.2
 MIN_SUPPORT = 0.5
 CLEAN_RMS_PX = 0.9
 CLEAN_RMS_FRAC = 0.012
+# Without a background image the "looks like the surroundings just outside" test compares the
+# band outside the outline with the colour a little farther out, which clutter varies by
+# itself: a looser limit there.
+OUTSIDE_MISMATCH_CLUTTER = 0.35
 
 
 @dataclass
@@ -114,7 +118,7 @@ def refine_candidate(image: np.ndarray, cam: CameraModel, cand: Candidate, spher
     H, W = image.shape[:2]
     R = max(cand.axes_px[0], cand.radius_px)
     # the contrast detector's radius is good to ~30 %, the background blob's to ~10 %
-    lo, hi = (-0.45, 0.8) if cand.source in ("contrast", "hint") else (-0.45, 0.5)
+    lo, hi = (-0.45, 0.8) if cand.source in ("contrast", "hint", "votes") else (-0.45, 0.5)
     m = int(np.ceil((1.1 + hi) * R + 8))
     box = (max(0, int(cand.centre_px[0]) - m), max(0, int(cand.centre_px[1]) - m),
            min(W, int(cand.centre_px[0]) + m + 1), min(H, int(cand.centre_px[1]) + m + 1))
@@ -131,18 +135,18 @@ def refine_candidate(image: np.ndarray, cam: CameraModel, cand: Candidate, spher
     pts = cand.centre_px[None, :] + r_dir[:, None] * dirs
     prof = sig.profiles(pts, dirs, t)
     g = gradient_magnitude(prof, step)
-    gmax = g.max(axis=1)
     # rays whose search segment leaves the image see no outline there (a cut sphere)
     seg_in = cam.in_image(pts + t[-1] * dirs) & cam.in_image(pts + t[0] * dirs)
     if seg_in.sum() < 12:
         return CandidateFit(False, "no outline edges")
-    t1, s1 = pick_edges(t, g, "outermost", 0.35 * float(np.median(gmax[seg_in])))
-    ok = np.isfinite(t1) & seg_in
-    if ok.sum() < 12:
-        return CandidateFit(False, "no outline edges")
-    uv1 = pts[ok] + t1[ok, None] * dirs[ok]
-    fit1 = fit_cone(cam, normalize_near(cam, uv1), a_range_rad, inlier_px=max(1.5, 0.04 * R), rng=rng,
-                    max_iter=6)
+    fit1 = _pass1(cam, pts, dirs, t, g, seg_in, "outermost", a_range_rad, R, rng)
+    if cand.source != "background":
+        # without a background, clutter just outside the outline also makes edges: the
+        # strongest colour edge per ray is the other reading; keep the rounder one
+        gc = gradient_magnitude(sig.colour_profiles(pts, dirs, t), step)
+        alt = _pass1(cam, pts, dirs, t, gc, seg_in, "strongest", a_range_rad, R, rng)
+        if alt is not None and (fit1 is None or alt.inliers.sum() > fit1.inliers.sum()):
+            fit1 = alt
     if fit1 is None or fit1.inliers.sum() < 0.4 * seg_in.sum():
         return CandidateFit(False, "no round outline")
 
@@ -205,10 +209,21 @@ def refine_candidate(image: np.ndarray, cam: CameraModel, cand: Candidate, spher
         res.ok, res.reason = False, f"outline not round (edge RMS {fit.sigma_px:.1f} px)"
     elif support < MIN_SUPPORT:
         res.ok, res.reason = False, f"outline {100 * (1 - support):.0f} % hidden or too faint"
-    elif outside_bad > 0.2:
+    elif outside_bad > (0.2 if sig.diff is not None else OUTSIDE_MISMATCH_CLUTTER):
         # the object goes on beyond the fitted outline: part of something larger (or cut)
         res.ok, res.reason = False, "round outline inside a larger object"
     return res
+
+
+def _pass1(cam, pts, dirs, t, g, seg_in, rule, a_range_rad, R, rng) -> ConeFit | None:
+    """Pass-1 cone fit to one edge per ray (``rule`` of :func:`pick_edges`)."""
+    t1, _ = pick_edges(t, g, rule, 0.35 * float(np.median(g.max(axis=1)[seg_in])))
+    ok = np.isfinite(t1) & seg_in
+    if ok.sum() < 12:
+        return None
+    uv1 = pts[ok] + t1[ok, None] * dirs[ok]
+    return fit_cone(cam, normalize_near(cam, uv1), a_range_rad, inlier_px=max(1.5, 0.04 * R), rng=rng,
+                    max_iter=6)
 
 
 def _outside_mismatch(sig: _Signal, sil: np.ndarray, nrm: np.ndarray, R: float) -> float:
