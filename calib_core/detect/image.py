@@ -120,14 +120,35 @@ def _refusal(fits, cands, method) -> ImageDetection:
                           partial_center_uv_px=[round(float(v), 2) for v in best.centre_uv_px])
     if any(c.touches_border and c.source == "background" and f.fit is None for c, f in fits):
         return _not_found(CUT, method, candidates=len(cands))
-    near = [f for _, f in fits if f.fit is not None and f.reason and f.support >= 0.3]
+    # a clean round outline, only partly visible, is worth naming; outlines that are not round
+    # or sit inside something larger are clutter (listed in the extras, not in the reason)
+    near = [f for _, f in fits if f.fit is not None and f.reason.startswith("outline ") and "hidden" in f.reason]
     if near:
         best = max(near, key=lambda f: f.support)
         u, v = best.centre_uv_px
         return _not_found(f"{best.reason} at ({u:.0f}, {v:.0f})", method, candidates=len(cands),
-                          rejected=sorted({f.reason for _, f in fits if f.reason}))
-    return _not_found(NO_OUTLINE, method, candidates=len(cands),
-                      rejected=sorted({f.reason for _, f in fits if f.reason}))
+                          rejected=_rejected(fits))
+    return _not_found(NO_OUTLINE, method, candidates=len(cands), rejected=_rejected(fits))
+
+
+def _stronger_refused(fits, best):
+    for _, f in fits:
+        if (not f.ok and f.credible and f.silhouette_px is not None
+                and np.hypot(*(f.centre_uv_px - best.centre_uv_px)) > _mean_radius(best.silhouette_px)
+                and _evidence(f) >= 0.5 * _evidence(best)):
+            return f
+    return None
+
+
+def _rejected(fits) -> list[str]:
+    """The candidates looked at and why each was refused ("<reason> at (u, v)")."""
+    out = []
+    for _, f in fits:
+        if f.reason and f.centre_uv_px is not None:
+            out.append(f"{f.reason} at ({f.centre_uv_px[0]:.0f}, {f.centre_uv_px[1]:.0f})")
+        elif f.reason:
+            out.append(f.reason)
+    return out[:6]
 
 
 def _evidence(f) -> float:
@@ -268,6 +289,14 @@ def detect_sphere_in_image(image_rgb: np.ndarray, cam: CameraModel, sphere_radiu
     if not good:
         return _refusal(fits, cands, method)
     good.sort(key=lambda cf: -_evidence(cf[1]))
+    # a clean round outline refused only for being cut by the border (or partly hidden) that
+    # outweighs the best accepted one: the accepted one is likely clutter, the sphere is there
+    blocker = _stronger_refused(fits, good[0][1])
+    if blocker is not None and hint_uv_px is None:
+        u, v = blocker.centre_uv_px
+        return _not_found(blocker.reason, method, candidates=len(cands),
+                          partial_center_uv_px=[round(float(u), 2), round(float(v), 2)],
+                          rejected=_rejected(fits))
     if len(good) > 1 and hint_uv_px is None and _evidence(good[1][1]) >= 0.5 * _evidence(good[0][1]):
         # both kept (u, v, range_m): a caller with another clue (the sonar's range, a click)
         # can choose; the detector does not guess

@@ -145,7 +145,7 @@ def refine_candidate(image: np.ndarray, cam: CameraModel, cand: Candidate, spher
         # strongest colour edge per ray is the other reading; keep the rounder one
         gc = gradient_magnitude(sig.colour_profiles(pts, dirs, t), step)
         alt = _pass1(cam, pts, dirs, t, gc, seg_in, "strongest", a_range_rad, R, rng)
-        if alt is not None and (fit1 is None or alt.inliers.sum() > fit1.inliers.sum()):
+        if alt is not None and (fit1 is None or _quality(alt) > _quality(fit1)):
             fit1 = alt
     if fit1 is None or fit1.inliers.sum() < 0.4 * seg_in.sum():
         return CandidateFit(False, "no round outline")
@@ -166,17 +166,24 @@ def refine_candidate(image: np.ndarray, cam: CameraModel, cand: Candidate, spher
     prof2 = sig.colour_profiles(sil, nrm, t2)
     g2 = gradient_magnitude(prof2, 0.5)
     g2_typ = float(np.median(g2.max(axis=1)[inside_img])) if inside_img.any() else 0.0
-    te, s2 = pick_edges(t2, g2, "outermost", 0.3 * g2_typ)
-    ok2 = np.isfinite(te) & inside_img
-    if ok2.sum() < 12:
-        return CandidateFit(False, "no outline edges")
-    uv2 = sil[ok2] + te[ok2, None] * nrm[ok2]
-    # edge points are within a few px of the model outline: Newton from its normalised points
-    xy2 = normalize_near(cam, uv2, sil_xy[ok2], iterations=3)
-    fit = fit_cone(cam, xy2, a_range_rad, inlier_px=max(1.0, 0.01 * R), rng=rng,
-                   corr_points=max(1.0, CORR_LENGTH_PX * k2 / perim), start=(fit1.w, fit1.a_rad))
-    if fit is None:
+    # the outline's envelope (outermost edge; open-mesh texture lies inside it) and, without a
+    # background, also the strongest edge (clutter just outside the outline makes edges too)
+    best = None
+    for rule in ("outermost",) if sig.diff is not None else ("outermost", "strongest"):
+        te, s2 = pick_edges(t2, g2, rule, 0.3 * g2_typ)
+        ok2 = np.isfinite(te) & inside_img
+        if ok2.sum() < 12:
+            continue
+        uv2 = sil[ok2] + te[ok2, None] * nrm[ok2]
+        # edge points are within a few px of the model outline: Newton from its normalised points
+        xy2 = normalize_near(cam, uv2, sil_xy[ok2], iterations=3)
+        fit = fit_cone(cam, xy2, a_range_rad, inlier_px=max(1.0, 0.01 * R), rng=rng,
+                       corr_points=max(1.0, CORR_LENGTH_PX * k2 / perim), start=(fit1.w, fit1.a_rad))
+        if fit is not None and (best is None or _quality(fit) > _quality(best[0])):
+            best = (fit, ok2, s2)
+    if best is None:
         return CandidateFit(False, "no round outline")
+    fit, ok2, s2 = best
 
     centre, cov = centre_uv_and_cov(cam, fit)
     # systematic outline deviations (ragged open-mesh envelope, shading, JPEG) do not average
@@ -213,6 +220,11 @@ def refine_candidate(image: np.ndarray, cam: CameraModel, cand: Candidate, spher
         # the object goes on beyond the fitted outline: part of something larger (or cut)
         res.ok, res.reason = False, "round outline inside a larger object"
     return res
+
+
+def _quality(fit: ConeFit) -> float:
+    """Edge points on the cone, discounted by their spread (px): to choose between readings."""
+    return float(fit.inliers.sum()) / (1.0 + fit.sigma_px ** 2)
 
 
 def _pass1(cam, pts, dirs, t, g, seg_in, rule, a_range_rad, R, rng) -> ConeFit | None:
