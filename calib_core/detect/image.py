@@ -177,6 +177,21 @@ def _inside(uv: np.ndarray, outline: np.ndarray) -> bool:
     return cv2.pointPolygonTest(outline.astype(np.float32), (float(uv[0]), float(uv[1])), False) > 0
 
 
+def _refine_all(img, cam, todo, sphere_radius_m, a_range, bg, rng, hinted: bool):
+    """Refine candidates in order; stop early when what is left cannot matter."""
+    fits: list[tuple[Candidate, CandidateFit]] = []
+    for c in todo:
+        ok = [cf for cf in fits if cf[1].ok]
+        same = [cf[0].strength for cf in ok if cf[0].source == c.source]  # comparable strengths
+        if ok and (hinted or (same and c.strength < 0.12 * max(same))):
+            break  # found, and what is left is far too weak to be a sphere (an open mesh
+            # target has much less contrast than a solid decoy: keep checking those)
+        if ok and 2 * np.pi * 1.3 * c.radius_px < 0.5 * max(_evidence(f) for _, f in ok):
+            continue  # even a perfect outline this small could not make the found one ambiguous
+        fits.append((c, refine_candidate(img, cam, c, sphere_radius_m, a_range, bg, rng)))
+    return fits
+
+
 def _merge_candidates(first: list[Candidate], then: list[Candidate]) -> list[Candidate]:
     """Round-outline votes first (they place centre and size well), then the region-contrast
     candidates that are not the same object."""
@@ -250,8 +265,9 @@ def detect_sphere_in_image(image_rgb: np.ndarray, cam: CameraModel, sphere_radiu
         cands, _ = candidates_from_background(small, background.small(s), s, r_bounds)
     else:
         bg = None
-        cands = _merge_candidates(candidates_by_votes(small, s, r_bounds, max_candidates=5),
-                                  candidates_single_frame(small, s, r_bounds, max_candidates=12))
+        cands = candidates_by_votes(small, s, r_bounds, max_candidates=5)
+        if not cands:
+            cands = candidates_single_frame(small, s, r_bounds, max_candidates=12)
     if hint_uv_px is not None:
         cands = _hint_candidates(cands, hint_uv_px, hint_radius_px, r_bounds)
     t_region = time.perf_counter()
@@ -264,13 +280,15 @@ def detect_sphere_in_image(image_rgb: np.ndarray, cam: CameraModel, sphere_radiu
         max_candidates = 6 if background is not None else 10
     todo = ([c for c in cands if not c.touches_border][:max_candidates]
             + [c for c in cands if c.touches_border][:2])
-    fits: list[tuple[Candidate, CandidateFit]] = []
-    for c in todo:
-        ok = [cf for cf in fits if cf[1].ok]
-        if ok and (hint_uv_px is not None or c.strength < 0.12 * max(cf[0].strength for cf in ok)):
-            break  # found, and what is left is far too weak to be a sphere (an open mesh
-            # target has much less contrast than a solid decoy: keep checking those)
-        fits.append((c, refine_candidate(img, cam, c, sphere_radius_m, a_range, bg, rng)))
+    fits = _refine_all(img, cam, todo, sphere_radius_m, a_range, bg, rng, hint_uv_px is not None)
+    if bg is None and hint_uv_px is None and not any(f.ok for _, f in fits):
+        # no round outline among the votes: region contrast (an open mesh, a low-contrast
+        # outline) as the second cue
+        more = _merge_candidates(cands, candidates_single_frame(small, s, r_bounds, max_candidates=12))[len(cands):]
+        cands = cands + more
+        fits += _refine_all(img, cam, ([c for c in more if not c.touches_border][:max_candidates]
+                                       + [c for c in more if c.touches_border][:2]),
+                            sphere_radius_m, a_range, bg, rng, False)
     fitted = [(c, f) for c, f in fits if f.credible]
     good: list[tuple[Candidate, CandidateFit]] = []
     for c, f in sorted(fits, key=lambda cf: -cf[1].score):

@@ -24,12 +24,11 @@ LEVEL_RADIUS_PX = (4.0, 8.0)
 RADIUS_STEP = 1.2
 
 
-def _colour_gradient(small_rgb: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(gx, gy, magnitude) float32 of the strongest Lab channel per pixel."""
-    lab = cv2.cvtColor(np.ascontiguousarray(small_rgb), cv2.COLOR_RGB2LAB).astype(np.float32)
+def _colour_gradient(lab: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(gx, gy, magnitude) float32 of the strongest Lab channel per pixel (``lab`` float32)."""
     best = None
     for c in range(3):
-        ch = cv2.GaussianBlur(lab[..., c], (0, 0), 0.8)
+        ch = cv2.GaussianBlur(np.ascontiguousarray(lab[..., c]), (0, 0), 0.8)
         gx = cv2.Sobel(ch, cv2.CV_32F, 1, 0, ksize=3)
         gy = cv2.Sobel(ch, cv2.CV_32F, 0, 1, ksize=3)
         m = gx * gx + gy * gy
@@ -72,12 +71,13 @@ def candidates_by_votes(small_rgb: np.ndarray, s: int, r_bounds_px: tuple[float,
     if r_hi < r_lo:
         return []
     radii = np.exp(np.arange(np.log(r_lo), np.log(r_hi) + 1e-9, np.log(RADIUS_STEP)))
+    lab = cv2.cvtColor(np.ascontiguousarray(small_rgb), cv2.COLOR_RGB2LAB).astype(np.float32)
     levels: dict[int, tuple] = {}
     peaks = []
     for R in radii:
         L = max(0, int(np.floor(np.log2(R / LEVEL_RADIUS_PX[0]))))
         if L not in levels:
-            levels[L] = _edge_pixels(downscale(small_rgb, 2 ** L))
+            levels[L] = _edge_pixels(downscale(lab, 2 ** L))
         xs, ys, nx, ny, shape = levels[L]
         if xs.size == 0:
             continue
@@ -94,8 +94,8 @@ def candidates_by_votes(small_rgb: np.ndarray, s: int, r_bounds_px: tuple[float,
     return _non_maximum(peaks, s, (h0, w0), max_candidates)
 
 
-def _edge_pixels(img: np.ndarray):
-    gx, gy, mag = _colour_gradient(img)
+def _edge_pixels(lab: np.ndarray):
+    gx, gy, mag = _colour_gradient(lab)
     h, w = mag.shape
     thr = max(4.0, float(np.percentile(mag[::2, ::2], 75)))
     ys, xs = np.nonzero(mag > thr)
