@@ -211,6 +211,9 @@ def _hint_candidates(cands, hint_uv, hint_r, r_bounds):
     return near + [Candidate(hint, float(r), (float(r), float(r)), 0.0, False, 0.0, "hint")]
 
 
+FAINT_CONTRAST = 10.0  # grey levels: a background-difference outline this faint gets a second look
+
+
 def detect_sphere_in_image(image_rgb: np.ndarray, cam: CameraModel, sphere_radius_m: float,
                            background: np.ndarray | None = None, method: str = "ellipse-exact",
                            hint_uv_px=None, hint_radius_px: float | None = None,
@@ -223,7 +226,7 @@ def detect_sphere_in_image(image_rgb: np.ndarray, cam: CameraModel, sphere_radiu
         cam: intrinsics of the camera.
         sphere_radius_m: known sphere radius (m).
         background: (H,W,3) background model (:func:`background_model`), or the same wrapped by
-            :func:`prepare_background` (faster when reused), or None (single-frame fallback).
+            :func:`prepare_background` (faster when reused), or None (single-frame detection).
         method: "ellipse-exact" (default; exact projection of the centre from the silhouette
             cone) or "hough-circle" (the paper's Canny + Hough circle centre).
         hint_uv_px: optional (u, v) raw pixel an operator clicked near the sphere: candidates
@@ -231,12 +234,34 @@ def detect_sphere_in_image(image_rgb: np.ndarray, cam: CameraModel, sphere_radiu
         hint_radius_px: optional apparent radius (px) for the hint.
         range_limits_m: plausible camera-to-sphere distances (m); bound the apparent size.
         max_candidates: most candidates refined at full resolution (default 6 with a
-            background, 10 without: the single-frame detector ranks less reliably).
+            background, 10 without).
         seed: seed of the RANSAC sampling (results are deterministic for a seed).
 
     Returns:
         :class:`ImageDetection`; ``found`` False with ``reason`` when nothing trustworthy.
+        With a background, a miss or a faint outline (turbid water: the sphere differs little
+        from the background model) gets a second, single-frame look; the stronger is kept.
     """
+    kw = dict(method=method, hint_uv_px=hint_uv_px, hint_radius_px=hint_radius_px,
+              range_limits_m=range_limits_m, max_candidates=max_candidates, seed=seed)
+    det = _detect_once(image_rgb, cam, sphere_radius_m, background, **kw)
+    if background is None or (det.found and det.extras.get("edge_contrast", 0) >= FAINT_CONTRAST):
+        return det
+    if not det.found and not (det.reason == NO_OUTLINE or "hidden" in det.reason):
+        return det  # cut by the border, two round objects, bad input: say so
+    alone = _detect_once(image_rgb, cam, sphere_radius_m, None, **kw)
+    if alone.found and (not det.found or alone.score * alone.radius_px > det.score * det.radius_px):
+        alone.extras["background_used"] = False
+        return alone
+    return det
+
+
+def _detect_once(image_rgb: np.ndarray, cam: CameraModel, sphere_radius_m: float,
+                 background=None, method: str = "ellipse-exact", hint_uv_px=None,
+                 hint_radius_px: float | None = None,
+                 range_limits_m: tuple[float, float] = DEFAULT_RANGE_LIMITS_M,
+                 max_candidates: int | None = None, seed: int = 0) -> ImageDetection:
+    """One detection pass (arguments as :func:`detect_sphere_in_image`)."""
     t0 = time.perf_counter()
     if method not in METHODS:
         raise ValueError(f"unknown image detection method {method!r}; use one of {METHODS}")
@@ -281,14 +306,15 @@ def detect_sphere_in_image(image_rgb: np.ndarray, cam: CameraModel, sphere_radiu
     todo = ([c for c in cands if not c.touches_border][:max_candidates]
             + [c for c in cands if c.touches_border][:2])
     fits = _refine_all(img, cam, todo, sphere_radius_m, a_range, bg, rng, hint_uv_px is not None)
-    if bg is None and hint_uv_px is None and not any(f.ok for _, f in fits):
+    if hint_uv_px is None and not any(f.ok for _, f in fits):
         # no round outline among the votes: region contrast (an open mesh, a low-contrast
         # outline) as the second cue
-        more = _merge_candidates(cands, candidates_single_frame(small, s, r_bounds, max_candidates=12))[len(cands):]
-        cands = cands + more
-        fits += _refine_all(img, cam, ([c for c in more if not c.touches_border][:max_candidates]
-                                       + [c for c in more if c.touches_border][:2]),
-                            sphere_radius_m, a_range, bg, rng, False)
+        if bg is None:
+            more = _merge_candidates(cands, candidates_single_frame(small, s, r_bounds, max_candidates=12))[len(cands):]
+            cands = cands + more
+            fits += _refine_all(img, cam, ([c for c in more if not c.touches_border][:max_candidates]
+                                           + [c for c in more if c.touches_border][:2]),
+                                sphere_radius_m, a_range, None, rng, False)
     fitted = [(c, f) for c, f in fits if f.credible]
     good: list[tuple[Candidate, CandidateFit]] = []
     for c, f in sorted(fits, key=lambda cf: -cf[1].score):
