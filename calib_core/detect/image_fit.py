@@ -150,40 +150,16 @@ def refine_candidate(image: np.ndarray, cam: CameraModel, cand: Candidate, spher
     if fit1 is None or fit1.inliers.sum() < 0.4 * seg_in.sum():
         return CandidateFit(False, "no round outline")
 
-    # ---- pass 2: along the normals of the fitted silhouette, narrow band, outermost edge
-    sil = silhouette_uv(cam, fit1.w, fit1.a_rad, n=180)
-    if not np.isfinite(sil).all():
+    # ---- pass 2: along the normals of the fitted silhouette, narrow band (twice when the
+    # first pass-2 fit is still rough: clutter drew pass 1 off the outline)
+    p2 = _pass2(cam, sig, fit1, R, a_range_rad, rng)
+    if p2 is not None and p2[0].sigma_px > max(CLEAN_RMS_PX, CLEAN_RMS_FRAC * R):
+        again = _pass2(cam, sig, p2[0], R, a_range_rad, rng)
+        if again is not None and _quality(again[0]) > _quality(p2[0]):
+            p2 = again
+    if p2 is None:
         return CandidateFit(False, "no round outline")
-    perim = float(np.linalg.norm(np.diff(np.vstack([sil, sil[:1]]), axis=0), axis=1).sum())
-    k2 = int(np.clip(perim / EDGE_SPACING_PX, 64, 360))
-    sil_xy = silhouette_xy(fit1.w, fit1.a_rad, k2)
-    sil = cam.distort(sil_xy)
-    ctr = cam.project(fit1.w[None, :])[0]
-    nrm = outward_normals(sil, sil.mean(axis=0) if np.isfinite(ctr).all() else ctr)
-    half = max(3.0, 3.0 * fit1.sigma_px + 1.5, 0.02 * R)
-    t2 = np.arange(-half, half + 0.25, 0.5)
-    inside_img = cam.in_image(sil, margin_px=1.0)
-    prof2 = sig.colour_profiles(sil, nrm, t2)
-    g2 = gradient_magnitude(prof2, 0.5)
-    g2_typ = float(np.median(g2.max(axis=1)[inside_img])) if inside_img.any() else 0.0
-    # the outline's envelope (outermost edge; open-mesh texture lies inside it) and, without a
-    # background, also the strongest edge (clutter just outside the outline makes edges too)
-    best = None
-    for rule in ("outermost",) if sig.diff is not None else ("outermost", "strongest"):
-        te, s2 = pick_edges(t2, g2, rule, 0.3 * g2_typ)
-        ok2 = np.isfinite(te) & inside_img
-        if ok2.sum() < 12:
-            continue
-        uv2 = sil[ok2] + te[ok2, None] * nrm[ok2]
-        # edge points are within a few px of the model outline: Newton from its normalised points
-        xy2 = normalize_near(cam, uv2, sil_xy[ok2], iterations=3)
-        fit = fit_cone(cam, xy2, a_range_rad, inlier_px=max(1.0, 0.01 * R), rng=rng,
-                       corr_points=max(1.0, CORR_LENGTH_PX * k2 / perim), start=(fit1.w, fit1.a_rad))
-        if fit is not None and (best is None or _quality(fit) > _quality(best[0])):
-            best = (fit, ok2, s2)
-    if best is None:
-        return CandidateFit(False, "no round outline")
-    fit, ok2, s2 = best
+    fit, ok2, s2, k2 = p2
 
     centre, cov = centre_uv_and_cov(cam, fit)
     # systematic outline deviations (ragged open-mesh envelope, shading, JPEG) do not average
@@ -216,10 +192,46 @@ def refine_candidate(image: np.ndarray, cam: CameraModel, cand: Candidate, spher
         res.ok, res.reason = False, f"outline not round (edge RMS {fit.sigma_px:.1f} px)"
     elif support < MIN_SUPPORT:
         res.ok, res.reason = False, f"outline {100 * (1 - support):.0f} % hidden or too faint"
-    elif outside_bad > (0.2 if sig.diff is not None else OUTSIDE_MISMATCH_CLUTTER):
+    elif (outside_bad > (0.2 if sig.diff is not None else OUTSIDE_MISMATCH_CLUTTER)
+          and not (support >= 0.85 and fit.sigma_px <= 0.5 * max(CLEAN_RMS_PX, CLEAN_RMS_FRAC * R))):
+        # (a nearly complete, very clean round outline is a sphere whatever lies around it)
         # the object goes on beyond the fitted outline: part of something larger (or cut)
         res.ok, res.reason = False, "round outline inside a larger object"
     return res
+
+
+def _pass2(cam, sig, fit1: ConeFit, R: float, a_range_rad, rng):
+    """Edges along the normals of ``fit1``'s outline, refitted: (fit, used mask, strengths, K)."""
+    sil = silhouette_uv(cam, fit1.w, fit1.a_rad, n=180)
+    if not np.isfinite(sil).all():
+        return None
+    perim = float(np.linalg.norm(np.diff(np.vstack([sil, sil[:1]]), axis=0), axis=1).sum())
+    k2 = int(np.clip(perim / EDGE_SPACING_PX, 64, 360))
+    sil_xy = silhouette_xy(fit1.w, fit1.a_rad, k2)
+    sil = cam.distort(sil_xy)
+    ctr = cam.project(fit1.w[None, :])[0]
+    nrm = outward_normals(sil, sil.mean(axis=0) if np.isfinite(ctr).all() else ctr)
+    half = max(3.0, 3.0 * fit1.sigma_px + 1.5, 0.02 * R)
+    t2 = np.arange(-half, half + 0.25, 0.5)
+    inside_img = cam.in_image(sil, margin_px=1.0)
+    g2 = gradient_magnitude(sig.colour_profiles(sil, nrm, t2), 0.5)
+    g2_typ = float(np.median(g2.max(axis=1)[inside_img])) if inside_img.any() else 0.0
+    # the outline's envelope (outermost edge; open-mesh texture lies inside it) and, without a
+    # background, also the strongest edge (clutter just outside the outline makes edges too)
+    best = None
+    for rule in ("outermost",) if sig.diff is not None else ("outermost", "strongest"):
+        te, s2 = pick_edges(t2, g2, rule, 0.3 * g2_typ)
+        ok2 = np.isfinite(te) & inside_img
+        if ok2.sum() < 12:
+            continue
+        uv2 = sil[ok2] + te[ok2, None] * nrm[ok2]
+        # edge points are within a few px of the model outline: Newton from its normalised points
+        xy2 = normalize_near(cam, uv2, sil_xy[ok2], iterations=3)
+        fit = fit_cone(cam, xy2, a_range_rad, inlier_px=max(1.0, 0.01 * R), rng=rng,
+                       corr_points=max(1.0, CORR_LENGTH_PX * k2 / perim), start=(fit1.w, fit1.a_rad))
+        if fit is not None and (best is None or _quality(fit) > _quality(best[0])):
+            best = (fit, ok2, s2, k2)
+    return best
 
 
 def _quality(fit: ConeFit) -> float:
