@@ -247,8 +247,9 @@ def detect_sphere_in_image(image_rgb: np.ndarray, cam: CameraModel, sphere_radiu
     det = _detect_once(image_rgb, cam, sphere_radius_m, background, **kw)
     if background is None or (det.found and det.extras.get("edge_contrast", 0) >= FAINT_CONTRAST):
         return det
-    if not det.found and not (det.reason == NO_OUTLINE or "hidden" in det.reason):
-        return det  # cut by the border, two round objects, bad input: say so
+    guessed_cut = det.reason == CUT and "partial_center_uv_px" not in det.extras  # a blob at the border
+    if not det.found and not (det.reason == NO_OUTLINE or "hidden" in det.reason or guessed_cut):
+        return det  # a fitted cut outline, two round objects, bad input: say so
     alone = _detect_once(image_rgb, cam, sphere_radius_m, None, **kw)
     if alone.found and (not det.found or alone.score * alone.radius_px > det.score * det.radius_px):
         alone.extras["background_used"] = False
