@@ -9,7 +9,12 @@ Per camera: recall within 3 px over the images that show the whole ball, false d
 (found but > 3 px off, or found where the ball is cut/absent), misses with their reasons,
 and the centre error of the hits. With ``--list`` it prints every image.
 
-Run: .venv/bin/python benchmarks/bench_real_images.py [--session DIR] [--list]
+With ``--solve`` it also runs the whole session flow (detection with the sonar-guided second
+look, then ``calibrate_session``) and reports, per camera, the detections within 3 px after
+the flow, the false ones and whether the solve used any of them, and k1's pose against the
+identity (the README's rough outside check: within ~1 deg and 150 mm).
+
+Run: .venv/bin/python benchmarks/bench_real_images.py [--session DIR] [--list] [--solve]
 """
 
 from __future__ import annotations
@@ -98,10 +103,55 @@ def print_table(rows: dict) -> None:
           f"| {tot['false']} | | | |")
 
 
+def solve_check(session_dir: Path) -> None:
+    from scipy.spatial.transform import Rotation
+
+    from calib_core import pipeline
+    from calib_core.solve.calibrate import calibrate_session
+
+    ses = load_session(session_dir)
+    ref = yaml.safe_load(REFERENCE.read_text())
+    t0 = time.perf_counter()
+    dets = pipeline.detect_session(ses, {})
+    cal = calibrate_session(ses, dets, {"detect": False})
+    print(f"\nWhole session flow (detect + calibrate, {time.perf_counter() - t0:.0f} s)")
+    print("| camera | within 3 px after the flow | false detections | false ones used in the solve "
+          "| captures used | rotation from identity (deg) | |t| (mm) |")
+    print("|---|---|---|---|---|---|---|")
+    for cam in sorted(ses.cameras):
+        c = cal["cameras"].get(cam)
+        hit, false, used_false = 0, [], []
+        used = set()
+        if c:
+            used = {r["capture"] for r in c.get("residuals", []) if r.get("used")}
+        whole = sum(ref[cam][k]["flag"] == "whole" for k in ref[cam])
+        for cid, d in dets.items():
+            e = d.get(cam) or {}
+            if e.get("center") is None:
+                continue
+            r = ref[cam][cid]
+            err = float(np.hypot(*(np.asarray(e["center"]) - r["centre_uv_px"])))
+            if r["flag"] == "whole" and err <= TOL_PX:
+                hit += 1
+            else:
+                false.append(f"{cid} ({err:.0f} px)")
+                if cid in used:
+                    used_false.append(cid)
+        if c:
+            T = np.asarray(c["T_cam_sonar"], float)
+            ang = np.degrees(np.linalg.norm(Rotation.from_matrix(T[:3, :3]).as_rotvec()))
+            pose = f"{ang:.2f} | {1e3 * np.linalg.norm(T[:3, 3]):.0f}"
+        else:
+            pose = "not calibrated | -"
+        print(f"| {cam} | {hit}/{whole} | {', '.join(false) or '-'} | {', '.join(used_false) or 'none'} "
+              f"| {len(used)} | {pose} |")
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--session")
     ap.add_argument("--list", action="store_true")
+    ap.add_argument("--solve", action="store_true")
     a = ap.parse_args(argv)
     d = _find_session(a.session)
     if d is None:
@@ -110,6 +160,8 @@ def main(argv=None) -> int:
     rows = run(d, a.list)
     print_table(rows)
     print("load average:", Path("/proc/loadavg").read_text().split()[:3])
+    if a.solve:
+        solve_check(d)
     return 0
 
 
