@@ -186,10 +186,17 @@ def _refine_all(img, cam, todo, sphere_radius_m, a_range, bg, rng, hinted: bool)
         if ok and (hinted or (same and c.strength < 0.12 * max(same))):
             break  # found, and what is left is far too weak to be a sphere (an open mesh
             # target has much less contrast than a solid decoy: keep checking those)
-        if ok and 2 * np.pi * 1.3 * c.radius_px < 0.5 * max(_evidence(f) for _, f in ok):
-            continue  # even a perfect outline this small could not make the found one ambiguous
+        if ok and _evidence_bound(c) < 0.5 * max(_evidence(f) for _, f in ok):
+            continue  # even at its best this one could not make the found one ambiguous
         fits.append((c, refine_candidate(img, cam, c, sphere_radius_m, a_range, bg, rng)))
     return fits
+
+
+def _evidence_bound(c: Candidate) -> float:
+    """Most evidence (:func:`_evidence`) a candidate's outline could give: its full perimeter,
+    or for a vote candidate 1.5x the outline share that voted (votes undercount, never by half)."""
+    share = min(1.0, 1.5 * c.strength / 100.0) if c.source == "votes" else 1.0
+    return share * 2 * np.pi * 1.3 * c.radius_px
 
 
 def _merge_candidates(first: list[Candidate], then: list[Candidate]) -> list[Candidate]:

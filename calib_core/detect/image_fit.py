@@ -41,6 +41,8 @@ CLEAN_RMS_FRAC = 0.012
 # band outside the outline with the colour a little farther out, which clutter varies by
 # itself: a looser limit there.
 OUTSIDE_MISMATCH_CLUTTER = 0.35
+PASS1_MAX_RMS_PX = 2.5
+PASS1_MAX_RMS_FRAC = 0.04
 
 
 @dataclass
@@ -140,7 +142,8 @@ def refine_candidate(image: np.ndarray, cam: CameraModel, cand: Candidate, spher
     if seg_in.sum() < 12:
         return CandidateFit(False, "no outline edges")
     fit1 = _pass1(cam, pts, dirs, t, g, seg_in, "outermost", a_range_rad, R, rng)
-    if cand.source != "background":
+    good1 = fit1 is not None and fit1.inliers.sum() >= 0.75 * seg_in.sum() and fit1.sigma_px <= 1.0
+    if cand.source != "background" and not good1:
         # without a background, clutter just outside the outline also makes edges: the
         # strongest colour edge per ray is the other reading; keep the rounder one
         gc = gradient_magnitude(sig.colour_profiles(pts, dirs, t), step)
@@ -148,6 +151,10 @@ def refine_candidate(image: np.ndarray, cam: CameraModel, cand: Candidate, spher
         if alt is not None and (fit1 is None or _quality(alt) > _quality(fit1)):
             fit1 = alt
     if fit1 is None or fit1.inliers.sum() < 0.4 * seg_in.sum():
+        return CandidateFit(False, "no round outline")
+    if fit1.sigma_px > max(PASS1_MAX_RMS_PX, PASS1_MAX_RMS_FRAC * R):
+        # the refinement narrows the band around this outline; it cannot turn an outline this
+        # ragged into a round one (saves the cost of pass 2 on clutter)
         return CandidateFit(False, "no round outline")
 
     # ---- pass 2: along the normals of the fitted silhouette, narrow band (twice when the
@@ -221,6 +228,9 @@ def _pass2(cam, sig, fit1: ConeFit, R: float, a_range_rad, rng):
     # background, also the strongest edge (clutter just outside the outline makes edges too)
     best = None
     for rule in ("outermost",) if sig.diff is not None else ("outermost", "strongest"):
+        if best is not None and best[0].sigma_px <= 0.5 * max(CLEAN_RMS_PX, CLEAN_RMS_FRAC * R) \
+                and best[0].inliers.mean() >= 0.9:
+            break  # the envelope reading is clean already
         te, s2 = pick_edges(t2, g2, rule, 0.3 * g2_typ)
         ok2 = np.isfinite(te) & inside_img
         if ok2.sum() < 12:

@@ -22,6 +22,7 @@ from calib_core.detect.image_region import Candidate, downscale
 
 LEVEL_RADIUS_PX = (4.0, 8.0)
 RADIUS_STEP = 1.2
+PEAKS_PER_RADIUS = 12
 
 
 def _colour_gradient(lab: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -89,8 +90,12 @@ def candidates_by_votes(small_rgb: np.ndarray, s: int, r_bounds_px: tuple[float,
         k = 2 * int(round(0.6 * Rl)) + 1
         dil = cv2.dilate(V, cv2.getStructuringElement(cv2.MORPH_RECT, (k, k)))
         yy, xx = np.nonzero((V >= dil) & (V >= min_fraction))
+        if len(yy) > PEAKS_PER_RADIUS:  # the strongest few per radius are all that can rank
+            top = np.argpartition(-V[yy, xx], PEAKS_PER_RADIUS)[:PEAKS_PER_RADIUS]
+            yy, xx = yy[top], xx[top]
         f = 2 ** L
-        peaks += [(float(V[y, x]), float(R), (x + 0.5) * f - 0.5, (y + 0.5) * f - 0.5) for y, x in zip(yy, xx)]
+        peaks += list(zip(V[yy, xx].tolist(), [float(R)] * len(yy), ((xx + 0.5) * f - 0.5).tolist(),
+                          ((yy + 0.5) * f - 0.5).tolist()))
     return _non_maximum(peaks, s, (h0, w0), max_candidates)
 
 
