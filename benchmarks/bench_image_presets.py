@@ -24,6 +24,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from calib_core.detect.image import detect_sphere_in_image  # noqa: E402
+from calib_core.detect.image_score import reliability_table  # noqa: E402
 from calib_core.synth.image_cases import KINDS, render_case  # noqa: E402
 
 TOL_PX = 3.0
@@ -80,6 +81,8 @@ def main(argv=None) -> int:
     a = ap.parse_args(argv)
     rows = run(a.kinds.split(","), range(a.first, a.first + a.seeds), a.scale, a.list)
     print_table(rows, a.scale)
+    print(reliability_table([x for st in rows.values() for x in st["scored"]],
+                            f"Reliability of the detection score (all kinds, seeds {a.first}-{a.first + a.seeds - 1})"))
     print("load average:", Path("/proc/loadavg").read_text().split()[:3])
     return 0
 

@@ -32,6 +32,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from calib_core.detect.image import detect_sphere_in_image  # noqa: E402
+from calib_core.detect.image_score import reliability_table  # noqa: E402
 from calib_core.io.images import load_image  # noqa: E402
 from calib_core.session import load_session  # noqa: E402
 
@@ -159,6 +160,8 @@ def main(argv=None) -> int:
         return 0
     rows = run(d, a.list)
     print_table(rows)
+    print(reliability_table([x for st in rows.values() for x in st["scores"]],
+                            "Reliability of the detection score on kinectnet (right = whole ball, within 3 px)"))
     print("load average:", Path("/proc/loadavg").read_text().split()[:3])
     if a.solve:
         solve_check(d)

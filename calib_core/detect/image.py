@@ -28,7 +28,9 @@ import numpy as np
 
 from calib_core.camera import CameraModel
 from calib_core.detect.image_fit import CandidateFit, refine_candidate
+from calib_core.detect.image_fit import CLEAN_RMS_FRAC, CLEAN_RMS_PX
 from calib_core.detect.image_hough import hough_circle
+from calib_core.detect.image_score import features, probability
 from calib_core.detect.image_votes import candidates_by_votes
 from calib_core.detect.image_region import (Candidate, candidates_from_background,
                                             candidates_single_frame, choose_scale, downscale,
@@ -359,6 +361,7 @@ def _detect_once(image_rgb: np.ndarray, cam: CameraModel, sphere_radius_m: float
     cand, f = good[0]
     extras = dict(f.extras)
     extras["candidates"] = len(cands)
+    extras["runner_up_ratio"] = round(_evidence(good[1][1]) / max(_evidence(f), 1e-9), 4) if len(good) > 1 else 0.0
     apparent_r = _mean_radius(f.silhouette_px)
     rng_sigma = float(sphere_radius_m * np.cos(f.fit.a_rad) / np.sin(f.fit.a_rad) ** 2
                       * np.sqrt(f.fit.cov_params[2, 2]))
@@ -366,8 +369,10 @@ def _detect_once(image_rgb: np.ndarray, cam: CameraModel, sphere_radius_m: float
     # the cone's half-angle is what the camera measures; range_m = radius / sin(angle), so a
     # wrong diameter in session.yaml shows up as a range that disagrees with the sonar's
     extras["angular_radius_deg"] = round(float(np.degrees(f.fit.a_rad)), 5)
+    extras["fit_quality"] = round(f.score, 4)
+    score = probability(features(extras, apparent_r, max(CLEAN_RMS_PX, CLEAN_RMS_FRAC * apparent_r)), f.score)
     det = ImageDetection(found=True, center_uv_px=f.centre_uv_px, cov_uv_px2=f.cov_uv_px2,
-                         score=f.score, ellipse_px=_ellipse_px(f.silhouette_px),
+                         score=score, ellipse_px=_ellipse_px(f.silhouette_px),
                          radius_px=apparent_r, range_m=f.range_m, method=method, extras=extras)
     if not (0.8 * d_min <= f.range_m <= 1.25 * d_max):
         return _not_found("apparent size outside the plausible range", method)

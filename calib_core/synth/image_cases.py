@@ -40,8 +40,9 @@ class ImageCase:
     label: str
 
 
-def render_case(kind: str, seed: int, scale: float = 0.5) -> ImageCase:
-    """Render one case of ``kind`` for ``seed`` at ``scale`` x 1920x1080."""
+def render_case(kind: str, seed: int, scale: float = 0.5, with_ball: bool = True) -> ImageCase:
+    """Render one case of ``kind`` for ``seed`` at ``scale`` x 1920x1080 (``with_ball`` False:
+    the same scene without the sphere and its holder, for false-detection counts)."""
     if kind not in KINDS:
         raise ValueError(f"unknown case kind {kind!r}; use one of {KINDS}")
     rng = np.random.default_rng([int(seed), 5151, KINDS.index(kind)])
@@ -51,7 +52,7 @@ def render_case(kind: str, seed: int, scale: float = 0.5) -> ImageCase:
     opts = RenderOptions(aa=3, blur_sigma_px=float(rng.uniform(0.5, 1.1)) * max(scale, 0.35),
                          noise_dn=float(rng.uniform(1.0, 3.0)), shot_gain=float(rng.uniform(0.05, 0.3)))
     if kind == "turbid":
-        return _turbid(rng, rig, cam, T_wc, opts, seed)
+        return _turbid(rng, rig, cam, T_wc, opts, seed, with_ball)
     radius = float(rng.uniform(0.1, 0.3))
     floor_z = float(min(T_wc[2, 3], 0.0) - rng.uniform(0.6, 1.3))
     if kind == "big":
@@ -62,7 +63,8 @@ def render_case(kind: str, seed: int, scale: float = 0.5) -> ImageCase:
     static = room.room_scene(rng, floor_z, [c])
     style = room.ball_style(rng)
     parts = room.ball_parts(rng, style, c, radius, floor_z, T_wc[:3, 3])
-    L, _ = render_radiance(Scene(tuple(static + parts)), cam, T_wc, room.room_air(rng), aa=opts.aa)
+    L, _ = render_radiance(Scene(tuple(static + (parts if with_ball else []))), cam, T_wc, room.room_air(rng),
+                           aa=opts.aa)
     return _finish(L, None, cam, T_wc, c, radius, opts, rng, f"{kind}/s{seed}/{style['holder']}")
 
 
@@ -86,7 +88,7 @@ def _close_centre(rng, cam, T_wc, radius, floor_z):
     raise RuntimeError("could not place a close sphere")
 
 
-def _turbid(rng, rig, cam, T_wc, opts, seed) -> ImageCase:
+def _turbid(rng, rig, cam, T_wc, opts, seed, with_ball=True) -> ImageCase:
     radius = float(rng.uniform(0.09, 0.15))
     style = world.sample_target_style(rng, radius)
     base = world.sample_water(rng, False)
@@ -97,7 +99,7 @@ def _turbid(rng, rig, cam, T_wc, opts, seed) -> ImageCase:
     hold = world.chain(rng, c + [0, 0, radius - 0.5 * style["wire_m"]], surface_z)
     parts = [world.target(style, c, radius, False)] + ([hold] if hold is not None else [])
     opts = RenderOptions(opts.aa, opts.blur_sigma_px * 1.5, opts.noise_dn, opts.shot_gain)
-    L, _ = render_radiance(Scene(tuple(static + parts)), cam, T_wc, water, aa=opts.aa)
+    L, _ = render_radiance(Scene(tuple(static + (parts if with_ball else []))), cam, T_wc, water, aa=opts.aa)
     Lb, _ = render_radiance(Scene(tuple(static)), cam, T_wc, water, aa=1)
     return _finish(L, Lb, cam, T_wc, c, radius, opts, rng, f"turbid/s{seed}")
 
