@@ -200,9 +200,10 @@ def refine_candidate(image: np.ndarray, cam: CameraModel, cand: Candidate, spher
     elif support < MIN_SUPPORT:
         res.ok, res.reason = False, f"outline {100 * (1 - support):.0f} % hidden or too faint"
     elif (outside_bad > (0.2 if sig.diff is not None else OUTSIDE_MISMATCH_CLUTTER)
-          and not (support >= 0.88 and outside_bad <= 0.5
-                   and fit.sigma_px <= 0.3 * max(CLEAN_RMS_PX, CLEAN_RMS_FRAC * R))):
-        # (a nearly complete, very clean round outline is a sphere whatever lies around it)
+          and not (support >= 0.7 and outside_bad <= 0.5
+                   and fit.sigma_px <= 0.35 * max(CLEAN_RMS_PX, CLEAN_RMS_FRAC * R))):
+        # (a mostly visible, very clean round outline is a sphere whatever lies around it: a
+        # ball resting on a block, in front of clutter)
         # the object goes on beyond the fitted outline: part of something larger (or cut)
         res.ok, res.reason = False, "round outline inside a larger object"
     return res
