@@ -209,6 +209,8 @@ def _detections(session, detections, views: list[CaptureView]) -> str:
             else:
                 cs = "(" + ", ".join(f"{x:.1f}" for x in c) + ") px" if isinstance(c, list) else ""
             score = f" score {_fmt(e.get('score'))}" if isinstance(e, dict) and "score" in e else ""
+            if isinstance(e, dict) and c is None and st != "rejected":
+                score = f": {e.get('reason') or 'not found'}"  # a miss says why, not "score 0.00"
             thumb = f"<img src='{v.thumbs[s]}' alt='{_e(v.id)} {_e(s)}' width='160'><br>" if s in v.thumbs else ""
             res = v.residual_px.get(s)
             res_s = f"<br>residual {math.hypot(*res):.2f} px" if res else ""
