@@ -156,8 +156,11 @@ def _rejected(fits) -> list[str]:
 def _evidence(f) -> float:
     """Weight of a fitted round outline: its score times the outline length it explains (px).
     Clutter makes small round outlines far more often than large ones, so a small round
-    thing (a knob, a lamp) does not make a clear, large sphere outline ambiguous."""
-    return f.score * f.support * _perimeter(f.silhouette_px)
+    thing (a knob, a lamp) does not make a clear, large sphere outline ambiguous. An outline
+    barely above the image noise (a few grey levels) counts less than a crisp one: at
+    FAINT_CONTRAST grey levels half."""
+    c = max(float(f.contrast), 0.0)
+    return f.score * f.support * _perimeter(f.silhouette_px) * c / (c + FAINT_CONTRAST)
 
 
 def _perimeter(sil: np.ndarray) -> float:

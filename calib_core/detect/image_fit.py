@@ -282,5 +282,11 @@ def _outside_mismatch(sig: _Signal, sil: np.ndarray, nrm: np.ndarray, R: float) 
         c_out = sample_profiles(sig.img, sig.origin, sil, nrm, t_out).mean(axis=1)
         p_in = np.linalg.norm(c_in - c_far, axis=1)
         p_out = np.linalg.norm(c_out - c_far, axis=1)
+        # in clutter the colour farther out varies by itself (brick, tiles, another block):
+        # the band outside counts as "the object goes on" only where it also looks more like
+        # the inside than like the surroundings farther out (a red ball on red brick)
+        typical = float(np.median(p_in))
+        like_inside = np.linalg.norm(c_out - c_in, axis=1) < p_out
+        return float(np.mean((p_out > 0.5 * max(typical, 1e-6)) & like_inside))
     typical = float(np.median(p_in))
     return float(np.mean(p_out > 0.5 * max(typical, 1e-6)))
