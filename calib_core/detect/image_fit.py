@@ -137,8 +137,10 @@ def refine_candidate(image: np.ndarray, cam: CameraModel, cand: Candidate, spher
     pts = cand.centre_px[None, :] + r_dir[:, None] * dirs
     prof = sig.profiles(pts, dirs, t)
     g = gradient_magnitude(prof, step)
-    # rays whose search segment leaves the image see no outline there (a cut sphere)
-    seg_in = cam.in_image(pts + t[-1] * dirs) & cam.in_image(pts + t[0] * dirs)
+    # a ray whose search segment leaves the image early sees no outline there (a cut sphere);
+    # one that leaves it only well past the expected outline is used up to the border (its
+    # edge must then lie inside the image: see _pass1)
+    seg_in = cam.in_image(pts + min(t[-1], 0.3 * R) * dirs) & cam.in_image(pts + t[0] * dirs)
     if seg_in.sum() < 12:
         return CandidateFit(False, "no outline edges")
     fit1 = _pass1(cam, pts, dirs, t, g, seg_in, "outermost", a_range_rad, R, rng)
@@ -156,6 +158,12 @@ def refine_candidate(image: np.ndarray, cam: CameraModel, cand: Candidate, spher
         # the refinement narrows the band around this outline; it cannot turn an outline this
         # ragged into a round one (saves the cost of pass 2 on clutter)
         return CandidateFit(False, "no round outline")
+
+    # the coarse radius can be far off (a vote from part of a large outline): from here on the
+    # band widths and limits follow the outline that pass 1 fitted
+    sil1 = silhouette_uv(cam, fit1.w, fit1.a_rad, n=64)
+    if np.isfinite(sil1).all():
+        R = float(np.clip(np.mean(np.linalg.norm(sil1 - sil1.mean(axis=0), axis=1)), 0.5 * R, 4.0 * R))
 
     # ---- pass 2: along the normals of the fitted silhouette, narrow band (twice when the
     # first pass-2 fit is still rough: clutter drew pass 1 off the outline)
@@ -255,6 +263,7 @@ def _pass1(cam, pts, dirs, t, g, seg_in, rule, a_range_rad, R, rng) -> ConeFit |
     """Pass-1 cone fit to one edge per ray (``rule`` of :func:`pick_edges`)."""
     t1, _ = pick_edges(t, g, rule, 0.35 * float(np.median(g.max(axis=1)[seg_in])))
     ok = np.isfinite(t1) & seg_in
+    ok[ok] = cam.in_image(pts[ok] + t1[ok, None] * dirs[ok], margin_px=2.0)
     if ok.sum() < 12:
         return None
     uv1 = pts[ok] + t1[ok, None] * dirs[ok]
