@@ -137,10 +137,12 @@ def refine_candidate(image: np.ndarray, cam: CameraModel, cand: Candidate, spher
     pts = cand.centre_px[None, :] + r_dir[:, None] * dirs
     prof = sig.profiles(pts, dirs, t)
     g = gradient_magnitude(prof, step)
-    # a ray whose search segment leaves the image early sees no outline there (a cut sphere);
-    # one that leaves it only well past the expected outline is used up to the border (its
-    # edge must then lie inside the image: see _pass1)
-    seg_in = cam.in_image(pts + min(t[-1], 0.3 * R) * dirs) & cam.in_image(pts + t[0] * dirs)
+    # rays whose search segment leaves the image see no outline there (a cut sphere); for a
+    # candidate at the border (whose coarse size is often short of the outline there) a ray
+    # that leaves it only well past the expected outline is used up to the border (its edge
+    # must then lie inside the image: see _pass1)
+    t_in = min(t[-1], 0.3 * R) if cand.touches_border else t[-1]
+    seg_in = cam.in_image(pts + t_in * dirs) & cam.in_image(pts + t[0] * dirs)
     if seg_in.sum() < 12:
         return CandidateFit(False, "no outline edges")
     fit1 = _pass1(cam, pts, dirs, t, g, seg_in, "outermost", a_range_rad, R, rng)
@@ -158,12 +160,6 @@ def refine_candidate(image: np.ndarray, cam: CameraModel, cand: Candidate, spher
         # the refinement narrows the band around this outline; it cannot turn an outline this
         # ragged into a round one (saves the cost of pass 2 on clutter)
         return CandidateFit(False, "no round outline")
-
-    # the coarse radius can be far off (a vote from part of a large outline): from here on the
-    # band widths and limits follow the outline that pass 1 fitted
-    sil1 = silhouette_uv(cam, fit1.w, fit1.a_rad, n=64)
-    if np.isfinite(sil1).all():
-        R = float(np.clip(np.mean(np.linalg.norm(sil1 - sil1.mean(axis=0), axis=1)), 0.5 * R, 4.0 * R))
 
     # ---- pass 2: along the normals of the fitted silhouette, narrow band (twice when the
     # first pass-2 fit is still rough: clutter drew pass 1 off the outline)

@@ -23,8 +23,6 @@ from calib_core.detect.image_region import Candidate, downscale
 LEVEL_RADIUS_PX = (4.0, 8.0)
 RADIUS_STEP = 1.2
 PEAKS_PER_RADIUS = 12
-SMALL_EXTRA = 3
-SMALL_MIN_FRACTION = 0.5
 
 
 def _colour_gradient(lab: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -111,27 +109,18 @@ def _edge_pixels(lab: np.ndarray):
 
 
 def _non_maximum(peaks, s: int, shape, max_candidates: int) -> list[Candidate]:
+    h, w = shape
     # a larger complete outline is stronger evidence: clutter (screw heads, checker corners,
     # texture) makes small round vote peaks far more often than large ones
-    # ... but a small outline most of which voted is still worth a (cheap) look: up to
-    # SMALL_EXTRA of those follow, by the share of their outline that voted
     peaks.sort(key=lambda p: -p[0] * np.sqrt(p[1] * s))
     out: list[Candidate] = []
-    _take(out, peaks, s, shape, max_candidates)
-    strong = sorted((p for p in peaks if p[0] >= SMALL_MIN_FRACTION), key=lambda p: -p[0])
-    _take(out, strong, s, shape, len(out) + SMALL_EXTRA)
-    return out
-
-
-def _take(out: list[Candidate], peaks, s: int, shape, limit: int) -> None:
-    """Append to ``out`` the peaks that are not the same outline as one already in it."""
-    h, w = shape
     for v, R, x, y in peaks:
-        if len(out) >= limit:
-            return
         c_full = (np.array([x, y], float) + 0.5) * s - 0.5
         if any(np.hypot(*(c.centre_px - c_full)) < 0.5 * max(c.radius_px, R * s)
                and 0.6 < c.radius_px / (R * s) < 1.7 for c in out):
             continue
         touches = x - R < 1 or y - R < 1 or x + R > w - 2 or y + R > h - 2
         out.append(Candidate(c_full, R * s, (R * s, R * s), 0.0, bool(touches), 100.0 * v, "votes"))
+        if len(out) >= max_candidates:
+            break
+    return out
