@@ -7,7 +7,10 @@ projection of the sphere centre), false detections (found elsewhere), centre RMS
 misses with their reasons, and the median time per image. Seeds 1000+ are held out from
 anything the detector's constants were chosen on.
 
-Run: .venv/bin/python benchmarks/bench_image_presets.py [--seeds N] [--scale S] [--first K]
+With --negatives each scene is also rendered without the ball (and its holder): anything found
+there is a false detection, and goes into the reliability table as a wrong one.
+
+Run: .venv/bin/python benchmarks/bench_image_presets.py [--seeds N] [--scale S] [--first K] [--negatives]
 """
 
 from __future__ import annotations
@@ -30,11 +33,28 @@ from calib_core.synth.image_cases import KINDS, render_case  # noqa: E402
 TOL_PX = 3.0
 
 
-def run(kinds, seeds, scale, listing=False) -> dict:
+def _negatives(kind, seed, scale, st, listing) -> None:
+    """The same scene without the ball (and its holder): any detection there is false."""
+    case = render_case(kind, seed, scale, with_ball=False)
+    for use_bg in ((True, False) if case.background is not None else (False,)):
+        det = detect_sphere_in_image(case.image, case.cam, case.radius_m,
+                                     background=case.background if use_bg else None)
+        st["neg"] += 1
+        if det.found:
+            st["neg_false"] += 1
+            st["scored"].append((det.score, False))
+        if listing:
+            print(f"{case.label + ' no ball':24s} bg={use_bg!s:5s} found={det.found!s:5s} score={det.score:.2f} {det.reason}")
+
+
+def run(kinds, seeds, scale, listing=False, negatives=False) -> dict:
     rows = {}
     for kind in kinds:
-        st = {"n": 0, "hit": 0, "false": 0, "errs": [], "miss": Counter(), "ms": [], "scored": []}
+        st = {"n": 0, "hit": 0, "false": 0, "errs": [], "miss": Counter(), "ms": [], "scored": [],
+              "neg": 0, "neg_false": 0}
         for seed in seeds:
+            if negatives:
+                _negatives(kind, seed, scale, st, listing)
             case = render_case(kind, seed, scale)
             for use_bg in ((True, False) if case.background is not None else (False,)):
                 t0 = time.perf_counter()
@@ -62,13 +82,14 @@ def run(kinds, seeds, scale, listing=False) -> dict:
 def print_table(rows, scale) -> None:
     print(f"\nImage detection on synthetic cases at {scale:g} x 1920x1080 (hit = within {TOL_PX:.0f} px)")
     print("| case | images | recall | false detections | centre RMS of hits (px) | max (px) "
-          "| ms/image (median) | misses (reason: count) |")
-    print("|---|---|---|---|---|---|---|---|")
+          "| ms/image (median) | misses (reason: count) | ball-free images: found anything |")
+    print("|---|---|---|---|---|---|---|---|---|")
     for kind, st in rows.items():
         e = np.array(st["errs"]) if st["errs"] else np.array([np.nan])
         miss = ", ".join(f"{k}: {v}" for k, v in st["miss"].most_common()) or "-"
+        neg = f"{st['neg_false']} of {st['neg']}" if st["neg"] else "-"
         print(f"| {kind} | {st['n']} | {100 * st['hit'] / max(st['n'], 1):.1f} % | {st['false']} "
-              f"| {np.sqrt(np.nanmean(e ** 2)):.3f} | {np.nanmax(e):.2f} | {np.median(st['ms']):.1f} | {miss} |")
+              f"| {np.sqrt(np.nanmean(e ** 2)):.3f} | {np.nanmax(e):.2f} | {np.median(st['ms']):.1f} | {miss} | {neg} |")
 
 
 def main(argv=None) -> int:
@@ -78,8 +99,10 @@ def main(argv=None) -> int:
     ap.add_argument("--scale", type=float, default=0.5)
     ap.add_argument("--kinds", default=",".join(KINDS))
     ap.add_argument("--list", action="store_true")
+    ap.add_argument("--negatives", action="store_true",
+                    help="also render each scene without the ball (hard negatives for the reliability table)")
     a = ap.parse_args(argv)
-    rows = run(a.kinds.split(","), range(a.first, a.first + a.seeds), a.scale, a.list)
+    rows = run(a.kinds.split(","), range(a.first, a.first + a.seeds), a.scale, a.list, a.negatives)
     print_table(rows, a.scale)
     print(reliability_table([x for st in rows.values() for x in st["scored"]],
                             f"Reliability of the detection score (all kinds, seeds {a.first}-{a.first + a.seeds - 1})"))
