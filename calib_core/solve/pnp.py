@@ -4,8 +4,9 @@ Hypotheses come from OpenCV's SQPnP on 4-point subsets (all of them when there a
 random ones otherwise) in normalised coordinates (K = I, no distortion: the points were
 already passed through P-hat^-1). Each hypothesis is scored by the captures' Mahalanobis
 distances under the full noise model (image + propagated sonar covariance), MSAC style.
-The best consensus is then refined by maximum likelihood and the inlier set re-gated until
-it stops changing, so a capture whose target moved between scan and image is named.
+The best consensus is then refined by maximum likelihood and the inlier set decided by the
+F test of :mod:`calib_core.solve.gate` (noise level from the data, stated false-alarm rate),
+so a capture whose target moved between scan and image is named and good ones are kept.
 """
 
 from __future__ import annotations
@@ -18,17 +19,21 @@ import cv2
 import numpy as np
 
 from calib_core.geometry import T_from_rotvec
-from calib_core.solve.model import CameraData, RigState, check_count, per_camera_stats, prediction_jacobian
+from calib_core.solve.gate import GateResult, gate_test, next_set
+from calib_core.solve.model import CameraData, RigState, check_count, per_camera_stats
 from calib_core.solve.refine import RigProblem, refine
 
 CHI2_2_999 = 13.8155  # chi-square, 2 dof, 99.9 %: the gate for "this capture does not fit"
 CHI2_2_99 = 9.2103  # 99 %: "suspicious"
 CHI2_2_MEDIAN = 1.3863
 MIN_HYPOTHESES = 40
-# A capture whose sonar centre passes within this distance of its image ray is never left out
-# (at most flagged): detection covariances are often optimistic, and a moved target or a wrong
-# detection misses by far more than 1 cm.
-MIN_MISS_M = 0.01
+# The first inlier set keeps what lies within 2x (in sigma) the gate at the robust noise level of
+# the RANSAC pose: generous on purpose, the F test of calib_core.solve.gate then decides.
+PRESELECT = 4.0
+# Rows in the fit whose linearised deleted statistic reaches this share of the critical value (the
+# EXACT_TOP worst) are tested exactly, by a refit without them.
+EXACT_SCREEN = 0.2
+EXACT_TOP = 3
 
 
 @dataclass
@@ -38,10 +43,10 @@ class PnPStart:
     Attributes:
         T_cam_sonar: the pose after refinement on the consensus set.
         inliers: (N,) bool.
-        mahalanobis2: (N,) the gate statistic of every row at that pose: squared Mahalanobis distance
-            with the pose's own uncertainty accounted for (see :func:`gate_statistics`).
-        gate: the chi-square gate used (inflated when the covariances look too optimistic).
-        noise_factor: >1 when the residuals are larger than the stated covariances explain.
+        gate_result: the F test of every row at that pose (:mod:`calib_core.solve.gate`), None when
+            too few captures to test.
+        gate: the chi-square gate of the first, generous inlier set (scaled by noise_factor).
+        noise_factor: robust (median) variance factor of the residuals at the RANSAC pose.
         n_hypotheses: hypotheses tried.
         warnings: things the operator should know.
         miss_m: (N,) distance (m) between each sonar centre, mapped into the camera, and its image ray.
@@ -49,7 +54,7 @@ class PnPStart:
 
     T_cam_sonar: np.ndarray
     inliers: np.ndarray
-    mahalanobis2: np.ndarray
+    gate_result: object
     gate: float
     noise_factor: float
     n_hypotheses: int
@@ -119,32 +124,12 @@ def ransac_pose(cd: CameraData, gate: float = CHI2_2_999, max_hypotheses: int = 
                         f"(6 at least, 9 or more recommended): add sphere positions")
     if best is None:
         raise_no_pose(cd)
-    inl = per_camera_stats(cd, best)[3] < gate if (check_outliers and n >= 6) else np.ones(n, bool)
-    if inl.sum() < 4:
-        inl = np.ones(n, bool)
-    factor = 1.0
-    T = best
-    miss = np.zeros(n)
-    for _ in range(6):
-        T, cov = _fit(cd, inl, T)
-        m2 = per_camera_stats(cd, T)[3]
-        if not (check_outliers and n >= 6):
-            break
-        stat, miss = gate_statistics(cd, T, cov, inl)
-        # Residuals larger than the stated covariances explain: gate on the observed spread instead.
-        factor = max(1.0, float(np.median(stat[inl])) / CHI2_2_MEDIAN)
-        new = (stat < gate * factor) | (miss < MIN_MISS_M)
-        m2 = stat
-        if new.sum() < 4 or np.array_equal(new, inl):
-            break
-        inl = new
-    if factor > 2.0:
-        warnings.append(f"{cd.name}: residuals are {math.sqrt(factor):.1f}x larger than the detections' stated "
-                        f"uncertainty; the outlier gate was widened accordingly (check intrinsics and detections)")
+    T, inl, stat, factor = _gate_loop(cd, best, gate, check_outliers and n >= 6)
+    miss = miss_distances(cd, T)
     if check_outliers and n >= 6 and inl.sum() < max(4, 0.5 * n):
         warnings.append(f"{cd.name}: only {int(inl.sum())} of {n} captures agree with one pose; check the "
                         f"detections (wrong sphere found?) and the intrinsics")
-    return PnPStart(T, inl, m2, gate * factor, factor, len(hyps), warnings, miss)
+    return PnPStart(T, inl, stat, gate * factor, factor, len(hyps), warnings, miss)
 
 
 def raise_no_pose(cd: CameraData):
@@ -165,30 +150,61 @@ def _fit(cd: CameraData, inl: np.ndarray, T0: np.ndarray):
     return res.state.T_ref_sonar, res.cov
 
 
-def gate_statistics(cd: CameraData, T: np.ndarray, cov6: np.ndarray, inl: np.ndarray):
-    """Per row: (gate statistic, miss distance in m).
+def _gate_loop(cd: CameraData, T0: np.ndarray, gate: float, check: bool):
+    """From the RANSAC pose: a generous first set (gate scaled by the robust noise level the
+    residuals show), then the F test of :mod:`calib_core.solve.gate` one capture at a time.
 
-    The statistic is chi-square(2)-distributed under the noise model for every row: rows in the
-    fit have their squared Mahalanobis distance divided by (1 - leverage), because the fit has
-    already pulled towards them (with 9 captures and 6 parameters, by two thirds on average);
-    rows outside it are measured against S + G C G^T, the prediction's own uncertainty added.
-    The miss distance is between the sonar centre mapped into the camera and its image ray.
-    """
-    _, r, S, m2, depth = per_camera_stats(cd, T)
-    G = prediction_jacobian(cd, T, np.arange(len(cd)))
-    P = G @ cov6 @ np.swapaxes(G, 1, 2)
-    lev = 0.5 * np.einsum("nii->n", np.linalg.solve(S, P))
-    stat_in = m2 / np.maximum(1.0 - lev, 0.05)
-    Sp = S + P
-    stat_out = np.einsum("ni,ni->n", r, np.linalg.solve(Sp, r[..., None])[..., 0])
-    stat = np.where(inl, stat_in, stat_out)
-    stat[depth <= 0] = np.inf
+    Returns (pose, inliers, gate result or None, robust noise factor)."""
+    n = len(cd)
+    m2 = per_camera_stats(cd, T0)[3]
+    if not check:
+        T, _ = _fit(cd, np.ones(n, bool), T0)
+        return T, np.ones(n, bool), None, 1.0
+    factor = float(np.median(m2[np.isfinite(m2)])) / CHI2_2_MEDIAN if np.isfinite(m2).any() else 1.0
+    inl = m2 < PRESELECT * gate * factor
+    if inl.sum() < 5:
+        inl = np.argsort(m2)[:max(5, n // 2)]
+        inl = np.isin(np.arange(n), inl)
+    min_keep = max(5, (n + 1) // 2)
+    T, seen = T0, set()
+    for _ in range(2 * n + 2):
+        T, cov = _fit(cd, inl, T)
+        res = _exact_deleted(cd, T, inl, gate_test(cd, T, cov, inl))
+        new = next_set(res, inl, min_keep)
+        key = inl.tobytes()
+        if new is None or key in seen:
+            break
+        seen.add(key)
+        inl = new
+    return T, inl, res, factor
+
+
+def _exact_deleted(cd: CameraData, T: np.ndarray, inl: np.ndarray, res):
+    """Replace the linearised deleted statistic of the most suspicious rows in the fit by the exact
+    one (refit without the row, predict it): a moved target with high leverage pulls the pose
+    far enough that the linearisation understates it."""
+    ratio = np.nan_to_num(res.ratio, nan=np.inf, posinf=np.inf)
+    cand = [i for i in np.argsort(-ratio) if inl[i] and ratio[i] > EXACT_SCREEN][:EXACT_TOP]
+    if not cand or inl.sum() - 1 < 5:
+        return res
+    F, crit, t, dof = res.F.copy(), res.crit.copy(), res.t.copy(), res.dof.copy()
+    for i in cand:
+        m = inl.copy()
+        m[i] = False
+        T2, cov2 = _fit(cd, m, T)
+        g = gate_test(cd, T2, cov2, m)
+        F[i], crit[i], t[i], dof[i] = g.F[i], g.crit[i], g.t[i], g.dof[i]
+    return GateResult(t, F, crit, dof, res.variance_factor)
+
+
+def miss_distances(cd: CameraData, T: np.ndarray) -> np.ndarray:
+    """Per row: distance (m) between the sonar centre mapped into the camera and its image ray."""
     Pc = cd.X_sonar_m @ T[:3, :3].T + T[:3, 3]
     d = np.column_stack([cd.xy, np.ones(len(cd))])
     d /= np.linalg.norm(d, axis=1, keepdims=True)
     miss = np.linalg.norm(Pc - np.sum(Pc * d, axis=1, keepdims=True) * d, axis=1)
-    miss[depth <= 0] = np.inf
-    return stat, miss
+    miss[Pc[:, 2] <= 0] = np.inf
+    return miss
 
 
 def layout_warnings(cd: CameraData, used: np.ndarray, T_cam_sonar: np.ndarray) -> list[str]:

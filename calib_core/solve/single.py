@@ -122,6 +122,6 @@ def solve_camera(cd: CameraData, estimate_scale: bool = False, robust: str | Non
         warnings.append(f"{cd.name}: residuals are {math.sqrt(vf):.1f}x what the detection uncertainties predict; "
                         f"the covariance was inflated to match (check intrinsics, detections, target motion)")
     loo_res = leave_one_out(cd, used, T, robust=robust, progress=progress) if loo else {}
-    rows = capture_rows(cd, used, T, start.mahalanobis2, start.gate, loo_res, res.state.scale, start.miss_m)
+    rows = capture_rows(cd, used, T, start.gate_result, loo_res, res.state.scale, start.miss_m)
     return CameraSolution(cd.name, cd, T, cov6, cov_scale, res.state.scale, scale_sigma, scale_note, used, rms,
                           res.chi2, res.dof, vf, rows, warnings)
