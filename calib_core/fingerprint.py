@@ -1,0 +1,105 @@
+"""Fingerprints of automatic detections: may an ``auto`` entry be reused as it is?
+
+An ``auto`` entry records ``fingerprint: {digest, files, params}``:
+- ``files``: {path relative to the session: {sha256, size, mtime_ns}} of every input file
+  (image, cloud, intrinsics, background frames);
+- ``params``: the detector's version (a digest of the detector's source code, so any change
+  to a detector invalidates old entries) and its parameters (sphere diameter, beam width,
+  background window, a refit hint);
+- ``digest``: sha256 of the canonical JSON of the file digests and the params.
+
+:func:`matches` re-derives the digest from the files as they are now and compares. Hashing
+every 1080p image and 500k-point cloud again would cost seconds per session, so, like git's
+index, a file whose size and modification time (ns) equal the recorded ones is taken to hold
+the recorded content; ``strict=True`` rehashes every file.
+"""
+
+from __future__ import annotations
+
+import functools
+import hashlib
+import json
+from pathlib import Path
+
+from calib_core import __version__
+
+_CHUNK = 1 << 20
+
+
+def file_sha256(path: Path) -> str:
+    h = hashlib.sha256()
+    with open(path, "rb") as f:
+        while chunk := f.read(_CHUNK):
+            h.update(chunk)
+    return h.hexdigest()
+
+
+@functools.lru_cache(maxsize=1)
+def detector_version() -> str:
+    """sonarcal's version and a digest of the detector package's source files."""
+    h = hashlib.sha256()
+    here = Path(__file__).resolve().parent
+    for p in sorted((here / "detect").glob("*.py")) + [here / "pipeline.py", here / "disambiguate.py"]:
+        h.update(p.name.encode())
+        h.update(p.read_bytes())
+    return f"{__version__}+{h.hexdigest()[:16]}"
+
+
+def _files(paths: list[Path]) -> list[Path]:
+    """Expand folders (background frame folders) into their files, sorted."""
+    out = []
+    for p in paths:
+        p = Path(p)
+        out += sorted(q for q in p.rglob("*") if q.is_file()) if p.is_dir() else [p]
+    return out
+
+
+def _record(root: Path, path: Path, old: dict | None, strict: bool) -> dict:
+    st = path.stat()
+    if (not strict and isinstance(old, dict) and isinstance(old.get("sha256"), str)
+            and old.get("size") == st.st_size and old.get("mtime_ns") == st.st_mtime_ns):
+        return dict(old)
+    return {"sha256": file_sha256(path), "size": st.st_size, "mtime_ns": st.st_mtime_ns}
+
+
+def _digest(files: dict, params: dict) -> str:
+    blob = json.dumps({"files": {k: v["sha256"] for k, v in sorted(files.items())}, "params": params},
+                      sort_keys=True, separators=(",", ":"))
+    return hashlib.sha256(blob.encode()).hexdigest()
+
+
+def _rel(root: Path, p: Path) -> str:
+    try:
+        return Path(p).resolve().relative_to(Path(root).resolve()).as_posix()
+    except ValueError:
+        return str(p)
+
+
+def fingerprint(root: Path, paths: list[Path], params: dict, old: dict | None = None, strict: bool = False) -> dict:
+    """The fingerprint of a detection from these input files and parameters. ``old`` (an
+    earlier fingerprint) lets unchanged files skip hashing (see the module doc)."""
+    prev = (old or {}).get("files") or {}
+    files = {}
+    for p in _files(paths):
+        key = _rel(root, p)
+        files[key] = _record(root, p, prev.get(key), strict)
+    params = {"detector": detector_version(), **params}
+    return {"digest": _digest(files, params), "files": files, "params": params}
+
+
+def matches(entry: dict | None, root: Path, paths: list[Path], params: dict, strict: bool = False) -> bool:
+    """Whether ``entry`` is an ``auto`` entry whose recorded fingerprint still matches."""
+    fp = (entry or {}).get("fingerprint")
+    if not isinstance(fp, dict) or not isinstance(fp.get("files"), dict) or entry.get("status") != "auto":
+        return False
+    try:
+        now = fingerprint(root, paths, dict(params, **_hint(fp)), old=fp, strict=strict)
+    except OSError:
+        return False
+    return now["digest"] == fp.get("digest")
+
+
+def _hint(fp: dict) -> dict:
+    """A recorded refit hint (sonar-guided second look) is a parameter of that entry."""
+    p = fp.get("params") or {}
+    return {k: p[k] for k in ("hint_uv_px", "hint_radius_px") if k in p}

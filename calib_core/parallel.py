@@ -1,0 +1,97 @@
+"""Run automatic detections over captures in parallel processes (deterministic results).
+
+Results come back in the order of the task list whatever order the processes finish in, and
+each detection is a pure function of its inputs, so the merged detections do not depend on
+the number of processes. Progress is reported as tasks finish.
+
+The pool uses a fork server (a clean process that imported the detectors once and forks the
+workers): forking the caller itself can deadlock, since OpenCV's and BLAS's thread pools (and
+the workbench's server threads) do not survive a fork. ``SONARCAL_WORKERS`` overrides the
+process count (1: in process).
+"""
+
+from __future__ import annotations
+
+import os
+
+_DATA = None  # the SessionData of this worker process (set by _init)
+
+
+def worker_count(n_tasks: int, workers: int | None = None) -> int:
+    if workers is None:
+        env = os.environ.get("SONARCAL_WORKERS", "").strip()
+        workers = int(env) if env.isdigit() and int(env) > 0 else (os.cpu_count() or 1)
+    return max(1, min(int(workers), n_tasks))
+
+
+def _init(data) -> None:
+    global _DATA
+    _DATA = data
+    try:
+        import cv2
+
+        cv2.setNumThreads(1)  # one process per core already
+    except ImportError:  # pragma: no cover
+        pass
+
+
+def _task(item):
+    """(cid, sensor, entry) or (cid, sensor, SessionError parts): SessionError does not pickle."""
+    from calib_core.errors import SessionError
+    from calib_core.pipeline import detect_one
+
+    cid, sensor = item
+    try:
+        return cid, sensor, detect_one(_DATA, cid, sensor)
+    except SessionError as e:
+        return cid, sensor, ("error", None if e.path is None else str(e.path), e.problem)
+
+
+def _prepare(data, todo) -> None:
+    """Camera models and background models, computed once in the parent for every worker."""
+    for cam in {sensor for _, sensor in todo if sensor != "sonar"}:
+        data.camera(cam)
+        data.background(cam)
+
+
+def _unwrap(cid, sensor, out):
+    from calib_core.errors import SessionError
+
+    if isinstance(out, tuple) and out and out[0] == "error":
+        raise SessionError(out[1], out[2])
+    return cid, sensor, out
+
+
+def run_detections(data, todo: list[tuple[str, str]], progress=None, workers: int | None = None) -> list:
+    """[(capture_id, sensor, entry)] for every (capture_id, sensor) in ``todo``, in that order."""
+    from calib_core.pipeline import detect_one
+
+    n = worker_count(len(todo), workers)
+    if n <= 1:
+        out = []
+        for i, (cid, sensor) in enumerate(todo):
+            if progress:
+                progress(i, len(todo), f"{cid} {sensor}")
+            out.append((cid, sensor, detect_one(data, cid, sensor)))
+        return out
+    return _run_pool(data, todo, progress, n)
+
+
+def _run_pool(data, todo, progress, n: int) -> list:
+    import multiprocessing as mp
+    from concurrent.futures import ProcessPoolExecutor, as_completed
+
+    _prepare(data, todo)
+    ctx = mp.get_context("forkserver")
+    ctx.set_forkserver_preload(["calib_core.pipeline", "calib_core.detect.image", "calib_core.detect.sonar"])
+    results: list = [None] * len(todo)
+    if progress:
+        progress(0, len(todo), f"detecting in {n} processes")
+    with ProcessPoolExecutor(n, mp_context=ctx, initializer=_init, initargs=(data,)) as ex:
+        futures = {ex.submit(_task, t): k for k, t in enumerate(todo)}
+        for done, f in enumerate(as_completed(futures), 1):
+            k = futures[f]
+            results[k] = f.result()
+            if progress:
+                progress(done, len(todo), f"{results[k][0]} {results[k][1]}")
+    return [_unwrap(*r) for r in results]
