@@ -334,6 +334,8 @@ class Correspondences:
         cov_X_m2: (N,3,3) their covariances (m^2).
         statuses: (image status, sonar status) per row.
         skipped: {capture_id: reason} for captures not used.
+        range_m, range_sigma_m: (N,) the image detection's camera-to-centre range (m, from the known
+            diameter) and its 1-sigma; NaN where the entry has none (e.g. a click).
     """
 
     capture_ids: list[str]
@@ -343,6 +345,8 @@ class Correspondences:
     cov_X_m2: np.ndarray
     statuses: list[tuple[str, str]]
     skipped: dict[str, str]
+    range_m: np.ndarray | None = None  # (N,) camera range from the sphere's apparent size, NaN if none
+    range_sigma_m: np.ndarray | None = None  # (N,) its 1-sigma, NaN if none
 
     def __len__(self) -> int:
         return len(self.capture_ids)
@@ -364,7 +368,7 @@ def correspondences(session: Session, detections: dict, cam: str) -> Corresponde
     """
     if cam not in session.cameras:
         raise SessionError(session.manifest_path, f"no camera '{cam}'")
-    ids, uv, cuv, X, cX, st, skipped = [], [], [], [], [], [], {}
+    ids, uv, cuv, X, cX, st, skipped, rng = [], [], [], [], [], [], {}, []
     for cap in session.captures:
         if cam not in cap.image_paths:
             continue
@@ -388,5 +392,11 @@ def correspondences(session: Session, detections: dict, cam: str) -> Corresponde
         X.append(son["center"])
         cX.append(_cov(son, "cov_m2", 3, DEFAULT_SIGMA_SONAR_M))
         st.append((img["status"], son["status"]))
+        rng.append([_number(img.get("range_m")), _number(img.get("range_sigma_m"))])
     return Correspondences(ids, np.asarray(uv, float).reshape(-1, 2), np.asarray(cuv, float).reshape(-1, 2, 2),
-                           np.asarray(X, float).reshape(-1, 3), np.asarray(cX, float).reshape(-1, 3, 3), st, skipped)
+                           np.asarray(X, float).reshape(-1, 3), np.asarray(cX, float).reshape(-1, 3, 3), st, skipped,
+                           np.asarray(rng, float).reshape(-1, 2)[:, 0], np.asarray(rng, float).reshape(-1, 2)[:, 1])
+
+
+def _number(v) -> float:
+    return float(v) if isinstance(v, (int, float)) and not isinstance(v, bool) else float("nan")

@@ -24,6 +24,7 @@ from calib_core.results import CALIBRATION_FORMAT
 from calib_core.solve.consistency import consistency, consistency_phrase, is_warning
 from calib_core.solve.model import camera_data
 from calib_core.solve.refine import ROBUST_LOSSES, Link
+from calib_core.solve.scale import diameter_sigma
 from calib_core.solve.rig import default_stereo_cov, find_stereo, solve_rig, table_i
 from calib_core.solve.single import CameraSolution, solve_camera
 
@@ -137,9 +138,11 @@ def _solve_cameras(session, dets, opts, progress):
         corr = pipeline.correspondences(session, dets, cam)
         model = session.camera_model(cam)
         try:
-            cd = camera_data(cam, model, corr.capture_ids, corr.uv_px, corr.cov_uv_px2, corr.X_sonar_m, corr.cov_X_m2)
+            cd = camera_data(cam, model, corr.capture_ids, corr.uv_px, corr.cov_uv_px2, corr.X_sonar_m, corr.cov_X_m2,
+                             corr.range_m, corr.range_sigma_m)
             sol = solve_camera(cd, estimate_scale=single_scale, robust=opts.robust, loo=opts.leave_one_out,
-                               check_outliers=opts.check_outliers, seed=opts.seed)
+                               check_outliers=opts.check_outliers, seed=opts.seed,
+                               diameter_rel_sigma=diameter_sigma(session)[0] / session.sphere_diameter_m)
         except SessionError as e:
             why = "; ".join(f"{c}: {r}" for c, r in corr.skipped.items())
             errors.append(e.problem + (f" (skipped: {why})" if why else ""))
@@ -191,13 +194,18 @@ def _joint(session, sols, entries, opts, progress, warnings):
     return joint, scale
 
 
-def _single_scale(sols: dict, n_cams: int, opts) -> dict:
+def _single_scale(session, sols: dict, n_cams: int, opts) -> dict:
     """The range scale block when there is no joint solve."""
     if opts.estimate_scale is False:
         return _scale_entry(note="held at 1 (--no-scale)")
     if n_cams == 1 and sols:
         only = next(iter(sols.values()))
-        return _scale_entry(only.scale, only.scale_sigma, only.scale_sigma is not None, f"{only.name} alone",
+        source = f"{only.name} alone"
+        if only.scale_observable:
+            d, assumed = diameter_sigma(session)
+            source = (f"{only.name}: sphere ranges from its apparent size (diameter {1000 * session.sphere_diameter_m:.1f}"
+                      f" ± {1000 * d:.1f} mm{', tolerance assumed: no sphere.diameter_sigma in session.yaml' if assumed else ''})")
+        return _scale_entry(only.scale, only.scale_sigma, only.scale_sigma is not None, source,
                             only.scale_note, only.scale_observable, only.scale_test)
     return _scale_entry(note="not observable: the cameras have no stereo transform in session.yaml to tie them")
 
@@ -223,7 +231,7 @@ def calibrate_session(session, detections: dict, options=None, progress=None) ->
     if len(solved) >= 2 and opts.joint:
         joint, scale = _joint(session, sols, entries, opts, progress, warnings)
     if scale is None:
-        scale = _single_scale(sols, len(session.cameras), opts)
+        scale = _single_scale(session, sols, len(session.cameras), opts)
     overall = joint["consistency"] if joint else (entries[solved[0]]["consistency"] if len(solved) == 1 else None)
     for c in [overall] if overall else [entries[c]["consistency"] for c in solved]:
         if is_warning(c):

@@ -21,8 +21,25 @@ from dataclasses import dataclass
 from calib_core.solve.refine import RigProblem, RefineResult, covariance_from_jacobian, jacobian, refine, weights_for
 
 SCALE_TEST_ALPHA = 0.01
+# Tolerance of the sphere's diameter when session.yaml gives no sphere.diameter_sigma: 1 mm
+# (a float or ball measured with calipers or a tape to about a millimetre).
+DEFAULT_DIAMETER_SIGMA_M = 0.001
 MAX_SCALE_SIGMA = 0.01  # a range scale known worse than 1 % is not worth estimating
 MODES = ("auto", "always", "never")
+
+
+def diameter_sigma(session) -> tuple[float, bool]:
+    """(sphere.diameter_sigma in metres, assumed?) from session.yaml, else the default."""
+    from calib_core.errors import SessionError
+
+    v = ((session.raw or {}).get("sphere") or {}).get("diameter_sigma")
+    if v is None:
+        return DEFAULT_DIAMETER_SIGMA_M, True
+    if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0 or \
+            v > 0.5 * session.sphere_diameter_m:
+        raise SessionError(session.manifest_path, f"sphere.diameter_sigma must be a tolerance in metres "
+                                                  f"(0 to half the diameter), got {v!r}")
+    return float(v), False
 
 
 def scale_mode(estimate_scale) -> str:
@@ -97,3 +114,30 @@ def choose_scale(prob_fixed: RigProblem, res_fixed: RefineResult, prob_free: Rig
     return ScaleChoice(res_fixed, prob_fixed, False, True,
                        f"kept at 1: the data show no scale error (free estimate {est}, F test p = "
                        f"{test['p_value']:.2g} >= {SCALE_TEST_ALPHA:g})", test)
+
+
+def diameter_term(problem: RigProblem, res: RefineResult, rel_sigma: float, robust: str | None = None,
+                  eps: float = 1e-3):
+    """Covariance added to a fit that used camera ranges by the sphere diameter's tolerance.
+
+    Every range is proportional to the assumed diameter, so a relative diameter error ``d``
+    scales them all at once (a systematic, not averaged away): the fit is repeated with the
+    ranges scaled by ``1 + eps`` and the parameter shift per unit ``d``, ``g``, gives
+    ``g g^T rel_sigma^2`` (n x n, in the problem's parameter perturbation)."""
+    import dataclasses
+
+    import numpy as np
+
+    from calib_core.solve.model import log_so3
+
+    cd = problem.cams[0]
+    cd2 = dataclasses.replace(cd, range_m=cd.range_m * (1.0 + eps))
+    p2 = RigProblem([cd2], problem.masks, problem.links, estimate_scale=problem.estimate_scale,
+                    use_ranges=len(problem.range_rows) > 0)
+    r2 = refine(p2, res.state, robust=robust, max_outer=4)
+    T0, T1 = res.state.T_ref_sonar, r2.state.T_ref_sonar
+    d = np.concatenate([log_so3(T1[:3, :3] @ T0[:3, :3].T), T1[:3, 3] - T0[:3, 3]])
+    if problem.estimate_scale:
+        d = np.append(d, r2.state.scale - res.state.scale)
+    g = d / eps
+    return np.outer(g, g) * rel_sigma**2
