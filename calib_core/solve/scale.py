@@ -83,20 +83,27 @@ class ScaleChoice:
     test: dict | None
 
 
-def lr_test(res_fixed: RefineResult, res_free: RefineResult) -> dict:
-    """F test of s = 1 against s free (see the module doc)."""
+def lr_test(res_fixed: RefineResult, res_free: RefineResult, systematic_var: float = 0.0) -> dict:
+    """F test of s = 1 against s free (see the module doc).
+
+    ``systematic_var``: variance of the scale from a systematic the fit cannot see (the sphere
+    diameter's tolerance, one camera): the statistic is deflated by
+    ``v sigma_s^2 / (v sigma_s^2 + systematic_var)``, so only a deviation beyond it counts."""
     from scipy.stats import f as f_dist
 
     d = max(res_fixed.chi2 - res_free.chi2, 0.0)
     v = res_free.chi2 / res_free.dof if res_free.dof > 0 else math.nan
     F = d / v if v > 0 else math.inf
+    if systematic_var > 0 and math.isfinite(F):
+        stat = v * max(res_free.cov[-1, -1], 0.0)
+        F *= stat / (stat + systematic_var)
     p = float(f_dist.sf(F, 1, res_free.dof)) if res_free.dof > 0 and math.isfinite(F) else 0.0
     return {"name": "likelihood-ratio F test of scale = 1", "F": F, "dof": [1, int(res_free.dof)], "p_value": p,
             "level": SCALE_TEST_ALPHA, "scaled_model_chosen": p < SCALE_TEST_ALPHA}
 
 
 def choose_scale(prob_fixed: RigProblem, res_fixed: RefineResult, prob_free: RigProblem, mode: str,
-                 robust: str | None = None) -> ScaleChoice:
+                 robust: str | None = None, systematic_var: float = 0.0) -> ScaleChoice:
     """Fit the scaled model when observable and pick between the two (see the module doc)."""
     if mode == "never":
         return ScaleChoice(res_fixed, prob_fixed, False, False, "held at 1 (--no-scale)", None)
@@ -104,8 +111,8 @@ def choose_scale(prob_fixed: RigProblem, res_fixed: RefineResult, prob_free: Rig
     if not ok:
         return ScaleChoice(res_fixed, prob_fixed, False, False, why, None)
     res_free = refine(prob_free, res_fixed.state, robust=robust)
-    test = lr_test(res_fixed, res_free)
-    sig = math.sqrt(res_free.cov[-1, -1] * max(1.0, res_free.variance_factor))
+    test = lr_test(res_fixed, res_free, systematic_var)
+    sig = math.sqrt(res_free.cov[-1, -1] * max(1.0, res_free.variance_factor) + systematic_var)
     est = f"{res_free.state.scale:.5f} ± {sig:.5f}"
     if mode == "always" or test["scaled_model_chosen"]:
         why = "forced (--scale)" if mode == "always" and not test["scaled_model_chosen"] else \

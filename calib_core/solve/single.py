@@ -70,7 +70,8 @@ def _scale_choice(cd: CameraData, used, prob, res, estimate_scale, robust, diame
         return choose_scale(prob, res, RigProblem([cd], [used], estimate_scale=True), mode, robust), 0.0
     prob_r = RigProblem([cd], [used], use_ranges=True)
     res_r = refine(prob_r, res.state, robust=robust)
-    ch = choose_scale(prob_r, res_r, RigProblem([cd], [used], estimate_scale=True, use_ranges=True), mode, robust)
+    ch = choose_scale(prob_r, res_r, RigProblem([cd], [used], estimate_scale=True, use_ranges=True), mode, robust,
+                      systematic_var=diameter_rel_sigma**2)
     if not ch.estimated:  # keep the solve without ranges: no diameter systematic in the pose
         return ScaleChoice(res, prob, False, ch.observable, ch.note, ch.test), 0.0
     return ch, diameter_term(ch.problem, ch.res, diameter_rel_sigma, robust)
