@@ -1,12 +1,14 @@
 """Fingerprints of automatic detections: may an ``auto`` entry be reused as it is?
 
-An ``auto`` entry records ``fingerprint: {digest, files, params}``:
-- ``files``: {path relative to the session: {sha256, size, mtime_ns}} of every input file
-  (image, cloud, intrinsics, background frames);
-- ``params``: the detector's version (a digest of the detector's source code, so any change
-  to a detector invalidates old entries) and its parameters (sphere diameter, beam width,
-  background window, a refit hint);
-- ``digest``: sha256 of the canonical JSON of the file digests and the params.
+An ``auto`` entry records ``fingerprint: {digest, detector, files[, hint_uv_px, hint_radius_px]}``:
+- ``files``: {path relative to the session: "SHA256 SIZE MTIME_NS"} of every input file
+  (image, cloud, intrinsics, background frames), one string each (detections.yaml of a
+  100-capture session stays quick to parse);
+- ``detector``: the detector's version (sonarcal's version and a digest of the detector's
+  source code, so any change to a detector invalidates old entries);
+- ``digest``: sha256 of the canonical JSON of the file digests and the parameters: the
+  detector version, the sphere diameter, the beam width (sonar), the background window
+  (image) and a refit hint (a sonar-guided second look), which is recorded with the entry.
 
 :func:`matches` re-derives the digest from the files as they are now and compares. Hashing
 every 1080p image and 500k-point cloud again would cost seconds per session, so, like git's
@@ -54,16 +56,25 @@ def _files(paths: list[Path]) -> list[Path]:
     return out
 
 
-def _record(root: Path, path: Path, old: dict | None, strict: bool) -> dict:
+def _parse(rec) -> tuple[str, int, int] | None:
+    """(sha256, size, mtime_ns) of a recorded file, None when malformed."""
+    try:
+        sha, size, mtime = str(rec).split()
+        return sha, int(size), int(mtime)
+    except (ValueError, TypeError):
+        return None
+
+
+def _record(path: Path, old, strict: bool) -> str:
     st = path.stat()
-    if (not strict and isinstance(old, dict) and isinstance(old.get("sha256"), str)
-            and old.get("size") == st.st_size and old.get("mtime_ns") == st.st_mtime_ns):
-        return dict(old)
-    return {"sha256": file_sha256(path), "size": st.st_size, "mtime_ns": st.st_mtime_ns}
+    rec = _parse(old) if old is not None else None
+    if not strict and rec and rec[1] == st.st_size and rec[2] == st.st_mtime_ns:
+        return str(old)
+    return f"{file_sha256(path)} {st.st_size} {st.st_mtime_ns}"
 
 
 def _digest(files: dict, params: dict) -> str:
-    blob = json.dumps({"files": {k: v["sha256"] for k, v in sorted(files.items())}, "params": params},
+    blob = json.dumps({"files": {k: v.split()[0] for k, v in sorted(files.items())}, "params": params},
                       sort_keys=True, separators=(",", ":"))
     return hashlib.sha256(blob.encode()).hexdigest()
 
@@ -82,9 +93,11 @@ def fingerprint(root: Path, paths: list[Path], params: dict, old: dict | None = 
     files = {}
     for p in _files(paths):
         key = _rel(root, p)
-        files[key] = _record(root, p, prev.get(key), strict)
+        files[key] = _record(p, prev.get(key), strict)
     params = {"detector": detector_version(), **params}
-    return {"digest": _digest(files, params), "files": files, "params": params}
+    out = {"digest": _digest(files, params), "detector": params["detector"], "files": files}
+    out.update(_hint(params))
+    return out
 
 
 def matches(entry: dict | None, root: Path, paths: list[Path], params: dict, strict: bool = False) -> bool:
@@ -99,7 +112,6 @@ def matches(entry: dict | None, root: Path, paths: list[Path], params: dict, str
     return now["digest"] == fp.get("digest")
 
 
-def _hint(fp: dict) -> dict:
-    """A recorded refit hint (sonar-guided second look) is a parameter of that entry."""
-    p = fp.get("params") or {}
-    return {k: p[k] for k in ("hint_uv_px", "hint_radius_px") if k in p}
+def _hint(d: dict) -> dict:
+    """A refit hint (sonar-guided second look) is a parameter of that entry, recorded with it."""
+    return {k: d[k] for k in ("hint_uv_px", "hint_radius_px") if k in d}

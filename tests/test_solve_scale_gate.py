@@ -113,3 +113,22 @@ def test_calibrate_reports_the_scale_and_speaks_with_one_voice(tmp_path, capsys)
     assert main(["calibrate", str(root), "--no-loo", "--no-scale", "--out", str(tmp_path / "c.json")]) == 0
     held = json.loads((tmp_path / "c.json").read_text())["range_scale"]
     assert held["value"] == 1.0 and not held["estimated"] and "held at 1" in capsys.readouterr().out
+
+
+def test_closed_form_leave_one_out_agrees_with_refits():
+    from calib_core.solve import diagnostics as dg
+
+    rig = synthetic_rig(5, n_captures=25)
+    cd = cdata(rig)
+    sol = solve_camera(cd, loo=False)
+    lin = dg._loo_linear(cd, sol.used, sol.T_cam_sonar)
+    ref = dg.leave_one_out(cd, sol.used, sol.T_cam_sonar) if len(sol.used) <= dg.LOO_REFIT_MAX else None
+    if ref is None:
+        old, dg.LOO_REFIT_MAX = dg.LOO_REFIT_MAX, 1000
+        try:
+            ref = dg.leave_one_out(cd, sol.used, sol.T_cam_sonar)
+        finally:
+            dg.LOO_REFIT_MAX = old
+    for i, r in ref.items():
+        for k in ("residual_px", "mahalanobis", "shift_deg", "shift_mm"):
+            assert lin[i][k] == pytest.approx(r[k], rel=0.02, abs=1e-3)

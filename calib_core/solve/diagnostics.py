@@ -17,11 +17,14 @@ import numpy as np
 from calib_core.geometry import pose_error
 from calib_core.solve.model import CameraData, RigState, per_camera_stats, prediction_jacobian
 from calib_core.solve.gate import ALPHA
+
+LOO_REFIT_MAX = 20  # above this many captures, leave-one-out uses the closed form (one refit each is slow)
 from calib_core.solve.refine import RigProblem, refine
 
 
 def leave_one_out(cd: CameraData, used: np.ndarray, T_cam_sonar: np.ndarray, robust=None, progress=None) -> dict:
-    """For each used row: solve without it and predict it.
+    """For each used row: solve without it and predict it (refits up to LOO_REFIT_MAX used rows,
+    the closed form of the linearised problem beyond).
 
     Returns {row: {"residual_px", "mahalanobis", "shift_deg", "shift_mm"}} (needs >= 5 used rows:
     a solve without the row needs 4).
@@ -30,6 +33,8 @@ def leave_one_out(cd: CameraData, used: np.ndarray, T_cam_sonar: np.ndarray, rob
     idx = np.flatnonzero(used)
     if len(idx) < 5:
         return out
+    if len(idx) > LOO_REFIT_MAX:
+        return _loo_linear(cd, used, T_cam_sonar)
     for k, i in enumerate(idx):
         if progress:
             progress(k, len(idx), f"{cd.name} leave-one-out {cd.capture_ids[i]}")
@@ -47,6 +52,32 @@ def leave_one_out(cd: CameraData, used: np.ndarray, T_cam_sonar: np.ndarray, rob
                        "shift_deg": math.degrees(dr), "shift_mm": 1000 * dt}
     if progress:
         progress(len(idx), len(idx), f"{cd.name} leave-one-out done")
+    return out
+
+
+def _loo_linear(cd: CameraData, used: np.ndarray, T_cam_sonar: np.ndarray) -> dict:
+    """Leave-one-out in closed form for the linearised problem (exact for a linear model):
+    deleting row i moves the parameters by ``C J_i^T (I - H_ii)^-1 e_i`` and its whitened
+    prediction residual is ``(I - H_ii)^-1 e_i``."""
+    from calib_core.solve.refine import jacobian, weights_for
+
+    prob = RigProblem([cd], [used])
+    state = RigState(T_cam_sonar, {cd.name: np.eye(4)})
+    Ws, _ = weights_for(prob, state, None, 1.0)
+    e = prob.whitened(state, Ws).reshape(-1, 2)
+    J = jacobian(prob, state, Ws).reshape(-1, 2, 6)
+    C = np.linalg.inv(np.einsum("nij,nik->jk", J, J))
+    H = J @ C @ np.swapaxes(J, 1, 2)
+    A = np.linalg.inv(np.eye(2)[None] - H)
+    e_del = np.einsum("nij,nj->ni", A, e)
+    d = np.einsum("jk,nik,ni->nj", C, J, e_del)
+    r_px = per_camera_stats(cd, T_cam_sonar)[0]
+    out = {}
+    for k, i in enumerate(np.flatnonzero(used)):  # groups keep the used rows in order (one camera)
+        grow = float(np.linalg.norm(e_del[k]) / max(np.linalg.norm(e[k]), 1e-300))
+        out[int(i)] = {"residual_px": float(np.linalg.norm(r_px[i])) * grow,
+                       "mahalanobis": float(math.sqrt(max(e[k] @ e_del[k], 0.0))),
+                       "shift_deg": math.degrees(float(np.linalg.norm(d[k, :3]))), "shift_mm": 1000 * float(np.linalg.norm(d[k, 3:]))}
     return out
 
 

@@ -52,12 +52,12 @@ class GateResult:
 
 def f_critical(dof: np.ndarray, n: int, alpha: float = ALPHA) -> np.ndarray:
     """(1 - alpha/n) quantile of F(2, dof), element-wise (inf where dof < 1)."""
-    from scipy.stats import f as f_dist
+    from scipy.special import fdtri  # scipy.stats takes seconds to import
 
     dof = np.asarray(dof, float)
     out = np.full(dof.shape, np.inf)
     ok = dof >= 1
-    out[ok] = f_dist.isf(alpha / max(n, 1), 2, dof[ok])
+    out[ok] = fdtri(2.0, dof[ok], 1.0 - alpha / max(n, 1))
     return out
 
 
