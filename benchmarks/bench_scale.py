@@ -5,7 +5,7 @@
 Every trial draws a fresh rig and sphere layout (calib_core.solve.simulate; 0.3 px image and
 3 mm sonar noise, stated correctly) and solves as ``calibrate_session`` does, with no flag
 (``estimate_scale=None``: the scale is estimated when observable and the likelihood-ratio F test
-at 1 % asks for it), and with ``--no-scale`` (held at 1: what the tool did before by default).
+at 0.1 % asks for it), and with ``--no-scale`` (held at 1: what the tool did before by default).
 
 A. Two cameras tied by the stereo transform (drawn from its assumed covariance, 0.05 deg / 1 mm
    per axis), true scale 1.02: scale error, share of trials that estimated it, pose error of cam1.

@@ -13,6 +13,7 @@ from calib_core.solve.consistency import NAME, consistency, consistency_phrase
 from calib_core.solve.model import camera_data
 from calib_core.solve.refine import Link
 from calib_core.solve.rig import default_stereo_cov, solve_rig
+from calib_core.solve.scale import SCALE_TEST_ALPHA
 from calib_core.solve.simulate import synthetic_rig
 from calib_core.solve.single import solve_camera
 
@@ -45,7 +46,7 @@ def test_two_cameras_without_scale_error_follow_the_test(seed):
     rig = synthetic_rig(seed, n_captures=12, scale=1.0)
     rs = joint(rig, None)
     t = rs.scale_test
-    assert t["level"] == 0.01 and t["scaled_model_chosen"] == (t["p_value"] < 0.01)
+    assert t["level"] == SCALE_TEST_ALPHA and t["scaled_model_chosen"] == (t["p_value"] < SCALE_TEST_ALPHA)
     assert (rs.scale_sigma is None) == (not t["scaled_model_chosen"])
     if not t["scaled_model_chosen"]:
         assert rs.scale == 1.0 and "kept at 1" in rs.scale_note

@@ -20,7 +20,7 @@ from dataclasses import dataclass
 
 from calib_core.solve.refine import RigProblem, RefineResult, covariance_from_jacobian, jacobian, refine, weights_for
 
-SCALE_TEST_ALPHA = 0.01
+SCALE_TEST_ALPHA = 0.001
 # Tolerance of the sphere's diameter when session.yaml gives no sphere.diameter_sigma: 1 mm
 # (a float or ball measured with calipers or a tape to about a millimetre).
 DEFAULT_DIAMETER_SIGMA_M = 0.001
