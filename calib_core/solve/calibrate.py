@@ -207,6 +207,8 @@ def _single_scale(session, sols: dict, n_cams: int, opts) -> dict:
                       f" ± {1000 * d:.1f} mm{', tolerance assumed: no sphere.diameter_sigma in session.yaml' if assumed else ''})")
         return _scale_entry(only.scale, only.scale_sigma, only.scale_sigma is not None, source,
                             only.scale_note, only.scale_observable, only.scale_test)
+    if not opts.joint:
+        return _scale_entry(note="not observable: the joint solve was turned off")
     return _scale_entry(note="not observable: the cameras have no stereo transform in session.yaml to tie them")
 
 
