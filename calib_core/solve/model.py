@@ -19,7 +19,6 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from calib_core.camera import CameraModel, pi_jacobian
 from calib_core.errors import SessionError
@@ -49,6 +48,7 @@ def log_so3(R: np.ndarray) -> np.ndarray:
     if th < 1e-6:
         return v * (1.0 + th * th / 6.0)
     if th > math.pi - 1e-3:
+        from scipy.spatial.transform import Rotation  # lazy: scipy.spatial costs start-up time
         return Rotation.from_matrix(R).as_rotvec()
     return v * (th / math.sin(th))
 
