@@ -30,6 +30,7 @@ MIN_HYPOTHESES = 40
 # The first inlier set keeps what lies within 2x (in sigma) the gate at the robust noise level of
 # the RANSAC pose: generous on purpose, the F test of calib_core.solve.gate then decides.
 PRESELECT = 4.0
+CORE_SHARE = 0.75
 # Rows in the fit whose linearised deleted statistic reaches this share of the critical value (the
 # EXACT_TOP worst) are tested exactly, by a refit without them.
 EXACT_SCREEN = 0.2
@@ -91,37 +92,17 @@ def ransac_pose(cd: CameraData, gate: float = CHI2_2_999, max_hypotheses: int = 
     warnings: list[str] = []
     rng = np.random.default_rng(seed)
     hyps: list[np.ndarray] = []
+    m2s: list[np.ndarray] = []
     T_all = _sqpnp(cd.X_sonar_m, cd.xy)
     if T_all is not None:
         hyps.append(T_all)
-    best, best_cost, best_inl = None, np.inf, 0
-
-    def score(T):
-        nonlocal best, best_cost, best_inl
-        m2 = per_camera_stats(cd, T)[3]
-        cost = float(np.sum(np.minimum(m2, gate)))
-        if cost < best_cost:
-            best, best_cost, best_inl = T, cost, int(np.sum(m2 < gate))
-
-    if T_all is not None:
-        score(T_all)
+        m2s.append(per_camera_stats(cd, T_all)[3])
     if check_outliers and n >= 6:
-        subsets = _subsets(n, max_hypotheses, rng)
-        rng.shuffle(subsets)
-        for k, sub in enumerate(subsets):
-            idx = np.asarray(sub)
-            T = _sqpnp(cd.X_sonar_m[idx], cd.xy[idx])
-            if T is not None:
-                hyps.append(T)
-                score(T)
-            # adaptive stop: enough samples to have drawn an all-inlier subset with 99.9 % probability
-            # (counted twice over, as noisy 4-point poses miss some inliers)
-            w = best_inl / n
-            if k >= MIN_HYPOTHESES and w > 0 and k >= 2 * math.log(1e-3) / math.log(max(1 - w**4, 1e-12)):
-                break
+        _sample(cd, gate, _subsets(n, max_hypotheses, rng), rng, hyps, m2s)
     elif n < 6:
         warnings.append(f"{cd.name}: only {n} captures, too few to check for a capture that does not fit "
                         f"(6 at least, 9 or more recommended): add sphere positions")
+    best = _best_hypothesis(hyps, m2s, gate)
     if best is None:
         raise_no_pose(cd)
     T, inl, stat, factor = _gate_loop(cd, best, gate, check_outliers and n >= 6)
@@ -130,6 +111,44 @@ def ransac_pose(cd: CameraData, gate: float = CHI2_2_999, max_hypotheses: int = 
         warnings.append(f"{cd.name}: only {int(inl.sum())} of {n} captures agree with one pose; check the "
                         f"detections (wrong sphere found?) and the intrinsics")
     return PnPStart(T, inl, stat, gate * factor, factor, len(hyps), warnings, miss)
+
+
+def _noise_factor(m2s: list[np.ndarray]) -> float:
+    """Robust variance factor: the least median of squared distances over the hypotheses (LMedS),
+    in units of chi-square(2)'s median. Scales exactly with the stated covariances, so the
+    consensus below does not depend on whether the stated sigmas are right."""
+    meds = [float(np.median(m)) for m in m2s if np.isfinite(m).sum() * 2 > len(m)]
+    return max(min(meds) / CHI2_2_MEDIAN, 1e-12) if meds else np.inf
+
+
+def _sample(cd: CameraData, gate: float, subsets, rng, hyps: list, m2s: list) -> None:
+    """Add 4-point SQPnP hypotheses (and their squared distances) until, by the adaptive rule,
+    an all-inlier subset has been drawn with 99.9 % probability (counted twice over, as noisy
+    4-point poses miss some inliers)."""
+    n = len(cd)
+    rng.shuffle(subsets)
+    best_inl, factor = 0, _noise_factor(m2s)
+    for k, sub in enumerate(subsets):
+        idx = np.asarray(sub)
+        T = _sqpnp(cd.X_sonar_m[idx], cd.xy[idx])
+        if T is not None:
+            hyps.append(T)
+            m2s.append(per_camera_stats(cd, T)[3])
+            factor = min(factor, _noise_factor(m2s[-1:]))  # the running LMedS factor
+            best_inl = max(best_inl, int(np.sum(m2s[-1] < gate * factor)))
+        w = best_inl / n
+        if k >= MIN_HYPOTHESES and w > 0 and k >= 2 * math.log(1e-3) / math.log(max(1 - w**4, 1e-12)):
+            break
+
+
+def _best_hypothesis(hyps: list, m2s: list, gate: float):
+    """MSAC on the gate scaled by the robust noise factor (see :func:`_noise_factor`)."""
+    if not hyps:
+        return None
+    f = _noise_factor(m2s)
+    g = gate * (f if np.isfinite(f) else 1.0)
+    costs = [float(np.sum(np.minimum(m, g))) for m in m2s]
+    return hyps[int(np.argmin(costs))]
 
 
 def raise_no_pose(cd: CameraData):
@@ -151,8 +170,9 @@ def _fit(cd: CameraData, inl: np.ndarray, T0: np.ndarray):
 
 
 def _gate_loop(cd: CameraData, T0: np.ndarray, gate: float, check: bool):
-    """From the RANSAC pose: a generous first set (gate scaled by the robust noise level the
-    residuals show), then the F test of :mod:`calib_core.solve.gate` one capture at a time.
+    """From the RANSAC pose: its consensus refined by ML, then a generous first set (PRESELECT x
+    the gate, scaled by the robust noise level of the consensus), then the F test of
+    :mod:`calib_core.solve.gate` one capture at a time.
 
     Returns (pose, inliers, gate result or None, robust noise factor)."""
     n = len(cd)
@@ -160,7 +180,15 @@ def _gate_loop(cd: CameraData, T0: np.ndarray, gate: float, check: bool):
     if not check:
         T, _ = _fit(cd, np.ones(n, bool), T0)
         return T, np.ones(n, bool), None, 1.0
-    factor = float(np.median(m2[np.isfinite(m2)])) / CHI2_2_MEDIAN if np.isfinite(m2).any() else 1.0
+    factor = _noise_factor([m2])
+    # the consensus at the hypothesis (at least CORE_SHARE of the rows: a small core fits itself too
+    # well and swamps good rows), refined by ML before judging the rest
+    k = min(n, max(5, math.ceil(CORE_SHARE * n)))
+    core = m2 <= max(gate * factor, float(np.sort(m2)[k - 1]))
+    if core.sum() >= 5:
+        T0, cov = _fit(cd, core, T0)
+        m2 = gate_test(cd, T0, cov, core).t  # deleted statistics: a small core predicts the rest loosely
+        factor = _noise_factor([m2])
     inl = m2 < PRESELECT * gate * factor
     if inl.sum() < 5:
         inl = np.argsort(m2)[:max(5, n // 2)]
