@@ -6,8 +6,10 @@ the number of processes. Progress is reported as tasks finish.
 
 The pool uses a fork server (a clean process that imported the detectors once and forks the
 workers): forking the caller itself can deadlock, since OpenCV's and BLAS's thread pools (and
-the workbench's server threads) do not survive a fork. ``SONARCAL_WORKERS`` overrides the
-process count (1: in process).
+the workbench's server threads) do not survive a fork. As with any spawn / fork-server pool, a
+calling script needs an ``if __name__ == "__main__":`` guard; without one the pool breaks and
+detection runs in process instead. ``SONARCAL_WORKERS`` overrides the process count (1: in
+process).
 """
 
 from __future__ import annotations
@@ -66,15 +68,20 @@ def run_detections(data, todo: list[tuple[str, str]], progress=None, workers: in
     """[(capture_id, sensor, entry)] for every (capture_id, sensor) in ``todo``, in that order."""
     from calib_core.pipeline import detect_one
 
+    from concurrent.futures.process import BrokenProcessPool
+
     n = worker_count(len(todo), workers)
-    if n <= 1:
-        out = []
-        for i, (cid, sensor) in enumerate(todo):
-            if progress:
-                progress(i, len(todo), f"{cid} {sensor}")
-            out.append((cid, sensor, detect_one(data, cid, sensor)))
-        return out
-    return _run_pool(data, todo, progress, n)
+    if n > 1:
+        try:
+            return _run_pool(data, todo, progress, n)
+        except (BrokenProcessPool, BrokenPipeError, EOFError):
+            pass  # e.g. a calling script without an ``if __name__ == "__main__":`` guard: run in process
+    out = []
+    for i, (cid, sensor) in enumerate(todo):
+        if progress:
+            progress(i, len(todo), f"{cid} {sensor}")
+        out.append((cid, sensor, detect_one(data, cid, sensor)))
+    return out
 
 
 def _run_pool(data, todo, progress, n: int) -> list:
