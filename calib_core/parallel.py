@@ -38,15 +38,28 @@ def _init(data) -> None:
 
 
 def _task(item):
-    """(cid, sensor, entry) or (cid, sensor, SessionError parts): SessionError does not pickle."""
+    """(cid, sensor, entry) or (cid, sensor, SessionError parts): SessionError does not pickle.
+    A sonar task carries the session's beam width (estimated after the pool started)."""
     from calib_core.errors import SessionError
     from calib_core.pipeline import detect_one
 
-    cid, sensor = item
+    cid, sensor, beam = item
+    if beam is not None:
+        _DATA.beam_width_deg = beam
     try:
         return cid, sensor, detect_one(_DATA, cid, sensor)
     except SessionError as e:
         return cid, sensor, ("error", None if e.path is None else str(e.path), e.problem)
+
+
+def _beam_task(capture_ids, detections):
+    from calib_core.errors import SessionError
+    from calib_core.pipeline import session_beam_width
+
+    try:
+        return session_beam_width(_DATA, capture_ids, detections)
+    except SessionError as e:
+        return ("error", None if e.path is None else str(e.path), e.problem)
 
 
 def _prepare(data, todo) -> None:
@@ -64,18 +77,25 @@ def _unwrap(cid, sensor, out):
     return cid, sensor, out
 
 
-def run_detections(data, todo: list[tuple[str, str]], progress=None, workers: int | None = None) -> list:
-    """[(capture_id, sensor, entry)] for every (capture_id, sensor) in ``todo``, in that order."""
-    from calib_core.pipeline import detect_one
+def run_detections(data, todo: list[tuple[str, str]], progress=None, workers: int | None = None,
+                   beam_ids: list | None = None, beam_detections: dict | None = None) -> list:
+    """[(capture_id, sensor, entry)] for every (capture_id, sensor) in ``todo``, in that order.
 
+    With ``beam_ids``, the session's effective beam width is first estimated from those
+    captures' clouds (``data.beam_width_deg`` is set) and the sonar detections use it; in a pool
+    the image detections run meanwhile."""
     from concurrent.futures.process import BrokenProcessPool
 
-    n = worker_count(len(todo), workers)
+    from calib_core.pipeline import detect_one, session_beam_width
+
+    n = worker_count(len(todo) + (1 if beam_ids else 0), workers)
     if n > 1:
         try:
-            return _run_pool(data, todo, progress, n)
+            return _run_pool(data, todo, progress, n, beam_ids or [], beam_detections or {})
         except (BrokenProcessPool, BrokenPipeError, EOFError):
             pass  # e.g. a calling script without an ``if __name__ == "__main__":`` guard: run in process
+    if beam_ids:
+        data.beam_width_deg = session_beam_width(data, beam_ids, beam_detections or {})
     out = []
     for i, (cid, sensor) in enumerate(todo):
         if progress:
@@ -84,9 +104,9 @@ def run_detections(data, todo: list[tuple[str, str]], progress=None, workers: in
     return out
 
 
-def _run_pool(data, todo, progress, n: int) -> list:
+def _run_pool(data, todo, progress, n: int, beam_ids: list, beam_detections: dict) -> list:
     import multiprocessing as mp
-    from concurrent.futures import ProcessPoolExecutor, as_completed
+    from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 
     _prepare(data, todo)
     ctx = mp.get_context("forkserver")
@@ -94,11 +114,23 @@ def _run_pool(data, todo, progress, n: int) -> list:
     results: list = [None] * len(todo)
     if progress:
         progress(0, len(todo), f"detecting in {n} processes")
+    later = [k for k, t in enumerate(todo) if beam_ids and t[1] == "sonar"]
     with ProcessPoolExecutor(n, mp_context=ctx, initializer=_init, initargs=(data,)) as ex:
-        futures = {ex.submit(_task, t): k for k, t in enumerate(todo)}
-        for done, f in enumerate(as_completed(futures), 1):
-            k = futures[f]
-            results[k] = f.result()
-            if progress:
-                progress(done, len(todo), f"{results[k][0]} {results[k][1]}")
+        futures = {ex.submit(_beam_task, beam_ids, beam_detections): -1} if beam_ids else {}  # first: the longest
+        futures.update({ex.submit(_task, (*t, None)): k for k, t in enumerate(todo) if k not in later})
+        done = 0
+        while futures:
+            finished, _ = wait(futures, return_when=FIRST_COMPLETED)
+            for f in finished:
+                k = futures.pop(f)
+                if k == -1:
+                    out = _unwrap(None, None, f.result())[2]
+                    data.beam_width_deg = out
+                    beam = data.effective_beam_width_deg
+                    futures.update({ex.submit(_task, (*todo[j], beam)): j for j in later})
+                    continue
+                results[k] = f.result()
+                done += 1
+                if progress:
+                    progress(done, len(todo), f"{results[k][0]} {results[k][1]}")
     return [_unwrap(*r) for r in results]

@@ -202,26 +202,24 @@ def detect_session(session_or_data, detections: dict, progress: Progress | None 
     is kept as it is. The sonar's effective beam width is estimated once per session (with
     ``estimate_beam_width`` and at least 3 clouds) and recorded in every sonar entry; later runs
     adopt the recorded width, so re-detection reproduces entries exactly. Detection runs in
-    ``workers`` processes (default: the CPU count; see :mod:`calib_core.parallel`).
+    ``workers`` processes (default: the CPU count; see :mod:`calib_core.parallel`); the beam
+    width estimate runs there too, alongside the image detections, which do not need it.
     """
-    from calib_core.io.clouds import load_cloud
     from calib_core.parallel import run_detections
 
     data = _as_data(session_or_data)
     data.adopt_beam_width(detections)
     todo = pending(data.session, detections, captures, redetect_auto)
-    if estimate_beam_width and data.beam_width_deg is None:
-        sonar_ids = [cid for cid, sensor in todo if sensor == "sonar"]
-        if len(sonar_ids) >= 3:
-            if progress:
-                progress(0, len(todo), "estimating the sonar's effective beam width")
-            clouds = {cid: load_cloud(data.session.capture(cid).cloud_path).points_m for cid in sonar_ids}
-            data.beam_width_deg = estimate_session_beam_width(data, clouds, detections)
-            del clouds
-    if reuse:
-        todo = stale(data, detections, todo)
+    sonar_ids = [cid for cid, sensor in todo if sensor == "sonar"]
+    beam_ids = sonar_ids if estimate_beam_width and data.beam_width_deg is None and len(sonar_ids) >= 3 else []
+    if reuse:  # with the beam width still to estimate, no sonar entry can match
+        keep = set(stale(data, detections, [t for t in todo if not (beam_ids and t[1] == "sonar")]))
+        todo = [t for t in todo if t in keep or (beam_ids and t[1] == "sonar")]
+    if progress and beam_ids:
+        progress(0, len(todo), "estimating the sonar's effective beam width")
     auto: dict = {}
-    for cid, sensor, entry in run_detections(data, todo, progress, workers):
+    beam_dets = {cid: detections.get(cid, {}) for cid in beam_ids}
+    for cid, sensor, entry in run_detections(data, todo, progress, workers, beam_ids, beam_dets):
         auto.setdefault(cid, {})[sensor] = _with_fingerprint(data, cid, sensor, entry)
     merged = merge_auto(detections, auto)
     for cam in data.session.cameras:
@@ -230,6 +228,15 @@ def detect_session(session_or_data, detections: dict, progress: Progress | None 
     if progress:
         progress(len(todo), len(todo), "done")
     return merge_auto(detections, auto)
+
+
+def session_beam_width(data: SessionData, capture_ids: list[str], detections: dict) -> float | None:
+    """Load the clouds of ``capture_ids`` and estimate the session's effective beam width
+    (:func:`estimate_session_beam_width`); None when it cannot be estimated."""
+    from calib_core.io.clouds import load_cloud
+
+    clouds = {cid: load_cloud(data.session.capture(cid).cloud_path).points_m for cid in capture_ids}
+    return estimate_session_beam_width(data, clouds, detections)
 
 
 def detect_one(data: SessionData, cid: str, sensor: str) -> dict:
