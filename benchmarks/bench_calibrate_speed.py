@@ -152,7 +152,7 @@ def main(argv=None):
         print(f"  sonarcal calibrate right after detect:        {ta:.2f} s  (runs {', '.join(f'{r[0]:.2f}' for r in after)}; "
               f"CPU s {', '.join(f'{r[2]:.2f}' for r in after)}; open3d imported: {after[0][1]})")
         print(f"  sonarcal calibrate fresh (detection included): {tf:.2f} s  (runs {', '.join(f'{r[0]:.2f}' for r in fresh)}; "
-              f"CPU s incl. worker processes {', '.join(f'{r[2]:.2f}' for r in fresh)})")
+              f"CPU s of the main process, workers not counted {', '.join(f'{r[2]:.2f}' for r in fresh)})")
         print(f"  calibrate_session in process, reused (Solve): {ts:.2f} s  (runs {', '.join(f'{v:.2f}' for v in solve)})")
         checks += [("calibrate right after detect, 9 captures, <= 1.0 s", f"{ta:.2f} s", ta <= 1.0),
                    ("fresh calibrate, 9 captures 1080p, <= 3 s", f"{tf:.2f} s", tf <= 3.0),
