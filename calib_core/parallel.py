@@ -33,7 +33,10 @@ def _init(data) -> None:
         import cv2
 
         cv2.setNumThreads(1)  # one process per core already
-    except ImportError:  # pragma: no cover
+        # as the CLI does in its own process: OpenCV's decoder warnings would add lines to stderr
+        cv2.utils.logging.setLogLevel(cv2.utils.logging.LOG_LEVEL_ERROR if os.environ.get("SONARCAL_DEBUG")
+                                      else cv2.utils.logging.LOG_LEVEL_SILENT)
+    except (ImportError, AttributeError):  # pragma: no cover
         pass
 
 
