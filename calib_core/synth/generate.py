@@ -7,6 +7,7 @@ near image corners, 1-4 m away), turbidity, lighting, blur and noise.
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -17,8 +18,9 @@ from calib_core.io.atomic import atomic_write_yaml
 from calib_core.io.clouds import save_cloud
 from calib_core.io.images import save_image
 from calib_core.io.intrinsics import save_intrinsics_ros
-from calib_core.synth import range_scenes, world
+from calib_core.synth import range_scenes, room, world
 from calib_core.synth.camera_render import RenderOptions, finish_image, render_radiance
+from calib_core.synth.drift import drift_positions, write_drift_frames
 from calib_core.synth.ground_truth import GT_FILE, GT_FORMAT, to_list
 from calib_core.synth.presets import get_preset
 from calib_core.synth.range_capture import in_field, sensor_config, simulate_range
@@ -50,7 +52,12 @@ def generate_session(out_dir, preset, seed: int, progress=None, **overrides) -> 
     d_factor = P.diameter_factor if P.diameter_factor == 1 or r_rig.random() < 0.5 else 2 - P.diameter_factor
     style = world.sample_target_style(r_rig, radius)
     water = world.sample_water(r_scene, P.bright)
-    opts = RenderOptions(aa=4, blur_sigma_px=float(r_scene.uniform(0.5, 1.2)) * max(P.scale, 0.35),
+    if P.scene == "room":
+        water = room.room_air(r_scene)
+    elif P.turbidity > 0:  # contrast falls with distance: strong attenuation and veil
+        water = replace(water, attenuation_per_m=float(r_scene.uniform(P.turbidity, P.turbidity + 0.3)))
+    opts = RenderOptions(aa=4, blur_sigma_px=float(r_scene.uniform(0.5, 1.2)) * max(P.scale, 0.35)
+                         * (1.5 if P.turbidity > 0 else 1.0),
                          noise_dn=float(r_scene.uniform(0.8, 3.0)), shot_gain=float(r_scene.uniform(0.05, 0.3)))
     cfg = SonarConfig(pan_step_deg=P.pan_step_deg, pan_span_deg=P.pan_span_deg, sub_rays=P.sub_rays,
                       range_scale=P.range_scale, range_noise_m=float(r_sonar.uniform(0.002, 0.006)),
@@ -58,10 +65,15 @@ def generate_session(out_dir, preset, seed: int, progress=None, **overrides) -> 
     if P.range_sensor != "sonar":  # a LiDAR or an RGB-D camera in the sonar's place
         cfg = sensor_config(P.range_sensor, r_sonar)
 
-    surface_z, static = (50.0, []) if P.scene == "lab" else world.surface_and_pontoons(r_scene, rig, P.scene)
+    if P.scene == "lab":
+        surface_z, static = 50.0, []
+    else:
+        surface_z, static = world.surface_and_pontoons(r_scene, rig, P.scene)
     seabed_z = floor_z = None
     lowest = min(T[2, 3] for _, T in rig.cams.values())
-    if P.scene == "seabed":
+    if P.scene == "room":  # dry: no surface; the floor plays the seabed's part
+        surface_z, static = 50.0, []
+    if P.scene in ("seabed", "room"):
         seabed_z = float(min(lowest, 0.0) - r_scene.uniform(0.5, 1.2))
     if P.scene == "lab":
         floor_z = float(min(lowest, 0.0) - r_scene.uniform(0.6, 1.0))
@@ -95,7 +107,11 @@ def generate_session(out_dir, preset, seed: int, progress=None, **overrides) -> 
             if ok_extra(cand) and sphere_in_image(cam0, invert_T(T_wc0), cand, radius, 2.0):
                 image_centers[moved_idx] = cand
                 break
-    if seabed_z is not None:
+    drift_idx = int(r_rig.integers(P.n_captures)) if P.drift_m > 0 else -1
+    if P.scene == "room":
+        static += room.room_scene(r_scene, seabed_z, centers + image_centers)
+        ball = room.ball_style(r_rig)
+    elif seabed_z is not None:
         static += world.seabed_scene(r_scene, rig, seabed_z, centers + image_centers)
     if floor_z is not None:
         static += range_scenes.room(r_scene, floor_z)
@@ -110,11 +126,14 @@ def generate_session(out_dir, preset, seed: int, progress=None, **overrides) -> 
             progress(done, total, label)
 
     def target_parts(c, rng):
-        ball = range_scenes.solid_ball(c, radius, P.bright) if P.solid_ball else world.target(style, c, radius, P.bright)
+        if P.scene == "room":
+            return room.ball_parts(rng, ball, c, radius, seabed_z, rig.cams[cams[0]][1][:3, 3])
+        ball_part = (range_scenes.solid_ball(c, radius, P.bright) if P.solid_ball
+                     else world.target(style, c, radius, P.bright))
         if P.holder:  # resting on a chair, a table or a slab, or on a stick held by a person
             base_z = floor_z if floor_z is not None else seabed_z
-            return [ball] + range_scenes.holder_parts(rng, P.holder, c, radius, base_z, rig.T_world_sonar[:3, 3])
-        parts = [ball]
+            return [ball_part] + range_scenes.holder_parts(rng, P.holder, c, radius, base_z, rig.T_world_sonar[:3, 3])
+        parts = [ball_part]
         hold = (world.stand(rng, c - [0, 0, radius], seabed_z) if seabed_z is not None
                 else world.chain(rng, c + [0, 0, radius - 0.5 * style["wire_m"]], surface_z))
         return parts + ([hold] if hold is not None else [])
@@ -151,6 +170,10 @@ def generate_session(out_dir, preset, seed: int, progress=None, **overrides) -> 
         manifest_caps.append({"id": cid, "cloud": f"clouds/{cid}{ext}", "images": images})
         gt_caps[cid] = _capture_truth(rig, img_scene, radius, centers[k] if is_target else None,
                                       image_centers[k] if is_target else None)
+        if k == drift_idx:  # the drift preset: frames recorded while the sphere drifts
+            gt_caps[cid]["drift"] = write_drift_frames(
+                out, cid, rig, lambda c: Scene(tuple(static + target_parts(c, np.random.default_rng([seed, 5, k])) + extra)),
+                drift_positions(r_cap, centers[k], P.drift_m), water, opts, r_cap, P.jpeg_quality)
 
     # ---- backgrounds, intrinsics, manifest, truth ------------------------------------
     bg_scene = Scene(tuple(static))
