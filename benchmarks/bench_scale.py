@@ -14,6 +14,8 @@ C. One camera, true scale 1.02 and 1.00: image ranges from the sphere's apparent
    noise, all scaled by one diameter error drawn from N(0, 1 mm) on a 220 mm sphere (the
    tolerance the tool assumes when session.yaml gives none). Coverage: share of trials with
    |s - s_true| <= 3 sigma (the sigma includes the diameter tolerance); RMS of (s - s_true)/sigma.
+D. Two cameras, no stereo transform (calib_core.solve.shared_scale): both cameras' ranges as in C
+   with one diameter error common to both; one shared scale, pose error of cam1 against held at 1.
 """
 
 from __future__ import annotations
@@ -33,6 +35,7 @@ from calib_core.solve.model import camera_data, exp_so3  # noqa: E402
 from calib_core.solve.refine import Link  # noqa: E402
 from calib_core.solve.rig import solve_rig  # noqa: E402
 from calib_core.solve.simulate import synthetic_rig  # noqa: E402
+from calib_core.solve.shared_scale import shared_scale  # noqa: E402
 from calib_core.solve.single import solve_camera  # noqa: E402
 
 DIAMETER_M, DIAMETER_SIGMA_M, RANGE_REL_SIGMA = 0.22, 0.001, 0.003
@@ -69,10 +72,11 @@ def two_cameras(trials, n, scale, sig):
     return {k: np.array(v, float) for k, v in out.items()}
 
 
-def ranges(rig, rng):
-    T = rig.T_cam_sonar["cam1"]
+def ranges(rig, rng, cam="cam1", k=None):
+    T = rig.T_cam_sonar[cam]
     true = np.linalg.norm(transform_points(T, rig.X_true_sonar_m), axis=1)
-    k = 1.0 + rng.normal(0, DIAMETER_SIGMA_M) / DIAMETER_M  # one diameter error for the whole session
+    if k is None:
+        k = 1.0 + rng.normal(0, DIAMETER_SIGMA_M) / DIAMETER_M  # one diameter error for the whole session
     sig = RANGE_REL_SIGMA * true
     return k * true + rng.normal(0, 1, len(true)) * sig, sig
 
@@ -92,8 +96,45 @@ def one_camera(trials, n, scale):
     return np.array(rows, float)
 
 
+def no_stereo(trials, n, scale):
+    rows = []
+    for k in range(trials):
+        rig = synthetic_rig(50_000 + k, n_captures=n, scale=scale, depth_m=(0.8, 3.0))
+        rng = np.random.default_rng(k)
+        kd = 1.0 + rng.normal(0, DIAMETER_SIGMA_M) / DIAMETER_M
+        sols = {c: solve_camera(cdata(rig, c, ranges(rig, rng, c, kd)), estimate_scale=False, loo=False)
+                for c in ("cam1", "cam2")}
+        sh = shared_scale({c: (v.data, v.used, v.T_cam_sonar) for c, v in sols.items()}, "auto",
+                          DIAMETER_SIGMA_M / DIAMETER_M)
+        T = sh.poses["cam1"][0] if sh.estimated else sols["cam1"].T_cam_sonar
+        e_a = pose_error(T, rig.T_cam_sonar["cam1"])
+        e_h = pose_error(sols["cam1"].T_cam_sonar, rig.T_cam_sonar["cam1"])
+        rows.append((sh.value, sh.sigma if sh.estimated else math.nan, sh.estimated, math.degrees(e_a[0]),
+                     1000 * e_a[1], math.degrees(e_h[0]), 1000 * e_h[1]))
+    return np.array(rows, float)
+
+
 def rms(v):
     return float(math.sqrt(np.mean(np.square(v))))
+
+
+def table_row(n, s, r, what):
+    """Print one row of tables C/D; return its target checks."""
+    est = r[:, 2] > 0
+    z = (r[est, 0] - s) / r[est, 1]
+    cover = float(np.mean(np.abs(z) <= 3)) if est.any() else math.nan
+    print(f"{n:>3} {s:>6.2f} | {100 * est.mean():>8.0f}% {100 * np.nanmedian(r[:, 1]) if est.any() else math.nan:>14.3f} "
+          f"{100 * cover:>9.1f}% {rms(z) if est.any() else math.nan:>6.2f} | {rms(r[:, 3]):>11.3f} "
+          f"{rms(r[:, 4]):>8.2f} | {rms(r[:, 5]):>9.3f} {rms(r[:, 6]):>6.2f}")
+    checks = []
+    if est.any():
+        checks.append((f"{what}, N={n}, true s {s}: scale within its stated 3 sigma (share of estimated trials)",
+                       f"{100 * cover:.1f} % of {int(est.sum())}", cover >= 0.99))
+    if s == 1.0:
+        worst = max(rms(r[:, 3]) / rms(r[:, 5]), rms(r[:, 4]) / rms(r[:, 6]))
+        checks.append((f"{what}, N={n}, no scale error: pose RMS within 2 % of held at 1",
+                       f"{worst:.3f}x (scale estimated in {100 * est.mean():.0f} %)", worst <= 1.02))
+    return checks
 
 
 def main(argv=None):
@@ -131,19 +172,14 @@ def main(argv=None):
     for n in (9, 15):
         for s in (1.02, 1.0):
             r = one_camera(a.trials, n, s)
-            est = r[:, 2] > 0
-            z = (r[est, 0] - s) / r[est, 1]
-            cover = float(np.mean(np.abs(z) <= 3)) if est.any() else math.nan
-            print(f"{n:>3} {s:>6.2f} | {100 * est.mean():>8.0f}% {100 * np.nanmedian(r[:, 1]) if est.any() else math.nan:>14.3f} "
-                  f"{100 * cover:>9.1f}% {rms(z) if est.any() else math.nan:>6.2f} | {rms(r[:, 3]):>11.3f} "
-                  f"{rms(r[:, 4]):>8.2f} | {rms(r[:, 5]):>9.3f} {rms(r[:, 6]):>6.2f}")
-            if est.any():
-                checks.append((f"one camera, N={n}, true s {s}: scale within its stated 3 sigma (share of estimated "
-                               f"trials)", f"{100 * cover:.1f} % of {int(est.sum())}", cover >= 0.99))
-            if s == 1.0:
-                worst = max(rms(r[:, 3]) / rms(r[:, 5]), rms(r[:, 4]) / rms(r[:, 6]))
-                checks.append((f"one camera, N={n}, no scale error: pose RMS within 2 % of held at 1",
-                               f"{worst:.3f}x (scale estimated in {100 * est.mean():.0f} %)", worst <= 1.02))
+            checks += table_row(n, s, r, "one camera")
+    print(f"\nD. Two cameras, no stereo transform, ranges as in C (one diameter error for both), {a.trials} trials per row")
+    print(f"{'N':>3} {'true s':>6} | {'estimated':>9} {'median sigma %':>14} {'in 3 sigma':>10} {'RMS z':>6} | "
+          f"{'rot RMS deg':>11} {'t RMS mm':>8} | {'held: rot':>9} {'t mm':>6}")
+    for n in (9, 15):
+        for s in (1.02, 1.0):
+            r = no_stereo(a.trials, n, s)
+            checks += table_row(n, s, r, "two cameras without stereo")
     print(f"load average after: {os.getloadavg()}")
     print("\nTargets")
     for name, val, ok in checks:

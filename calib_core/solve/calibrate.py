@@ -25,6 +25,7 @@ from calib_core.solve.consistency import consistency, consistency_phrase, is_war
 from calib_core.solve.model import camera_data
 from calib_core.solve.refine import ROBUST_LOSSES, Link
 from calib_core.solve.scale import diameter_sigma
+from calib_core.solve.shared_scale import shared_scale
 from calib_core.solve.rig import default_stereo_cov, find_stereo, solve_rig, table_i
 from calib_core.solve.single import CameraSolution, solve_camera
 
@@ -207,9 +208,35 @@ def _single_scale(session, sols: dict, n_cams: int, opts) -> dict:
                       f" ± {1000 * d:.1f} mm{', tolerance assumed: no sphere.diameter_sigma in session.yaml' if assumed else ''})")
         return _scale_entry(only.scale, only.scale_sigma, only.scale_sigma is not None, source,
                             only.scale_note, only.scale_observable, only.scale_test)
-    if not opts.joint:
-        return _scale_entry(note="not observable: the joint solve was turned off")
-    return _scale_entry(note="not observable: the cameras have no stereo transform in session.yaml to tie them")
+    if len(sols) >= 2:
+        shared = _shared(session, sols, opts)
+        if shared is not None:
+            return shared
+    return _scale_entry(note="not observable: the cameras have no stereo transform in session.yaml to tie them and "
+                             "fewer than two record the sphere's range (apparent size)")
+
+
+def _shared(session, sols: dict, opts) -> dict | None:
+    """The range scale from several cameras' diameter evidence (calib_core.solve.shared_scale), or None."""
+    d, assumed = diameter_sigma(session)
+    cams = {c: (s.data, s.used, s.T_cam_sonar) for c, s in sols.items()}
+    mode = "always" if opts.estimate_scale is True else "auto"
+    sh = shared_scale(cams, mode, d / session.sphere_diameter_m, opts.robust)
+    if sh is None:
+        return None
+    source = (f"{' + '.join(sh.per_camera)}: sphere ranges from its apparent size, one scale for all (diameter "
+              f"{1000 * session.sphere_diameter_m:.1f} ± {1000 * d:.1f} mm"
+              f"{', tolerance assumed: no sphere.diameter_sigma in session.yaml' if assumed else ''})")
+    entry = _scale_entry(sh.value, sh.sigma if sh.estimated else None, sh.estimated, source, sh.note, True, sh.test)
+    entry["per_camera"] = sh.per_camera
+    entry["poses"] = sh.poses
+    return entry
+
+
+def _apply_shared_poses(poses: dict, entries: dict) -> None:
+    """Each camera's pose refitted at the shared range scale replaces its s = 1 pose (``independent`` keeps that)."""
+    for c, (T, cov) in poses.items():
+        entries[c].update({"T_cam_sonar": T, "covariance": cov, "solution": "shared range scale", **sigmas(cov)})
 
 
 def calibrate_session(session, detections: dict, options=None, progress=None) -> dict:
@@ -234,6 +261,7 @@ def calibrate_session(session, detections: dict, options=None, progress=None) ->
         joint, scale = _joint(session, sols, entries, opts, progress, warnings)
     if scale is None:
         scale = _single_scale(session, sols, len(session.cameras), opts)
+        _apply_shared_poses(scale.pop("poses", {}), entries)
     overall = joint["consistency"] if joint else (entries[solved[0]]["consistency"] if len(solved) == 1 else None)
     for c in [overall] if overall else [entries[c]["consistency"] for c in solved]:
         if is_warning(c):
