@@ -90,19 +90,12 @@ def estimate_beam_width_deg(clouds_sonar_m: list, sphere_radius_m: float,
         return BeamWidthEstimate(float(nominal_deg), float(nominal_deg), len(crops),
                                  f"needs at least {MIN_CAPTURES} detected spheres")
     scale = max(float(np.median(sigmas)), 1e-3)
-    costs = []
-    for k, f in enumerate(factors):
-        h = h0 * f
-        total = 0.0
-        for j, (X, c) in enumerate(crops):
-            fit = fit_sphere(X, c, r, model="cone", half_angle_rad=h, sigma0_m=scale)
-            cc = fit.center_m if fit.ok else c
-            R = np.linalg.norm(X, axis=1)
-            a, b = cone_residuals(cc, r, R, X / R[:, None], h)
-            total += float(np.sum(np.minimum(np.hypot(a, b) / scale, 3.0) ** 2))
-        costs.append(total)
+    scan = _WidthScan(crops, r, h0, scale)
+    for k, f in enumerate(_search_order(scan, factors)):
         if progress is not None:
             progress(n + k + 1, n + len(factors), "beam width: scan")
+    factors = np.asarray(sorted(scan.costs), float)
+    costs = [scan.costs[f] for f in factors]
     costs = np.asarray(costs)
     b = int(np.argmin(costs))
     best = float(factors[b])
@@ -114,6 +107,56 @@ def estimate_beam_width_deg(clouds_sonar_m: list, sphere_radius_m: float,
     best = max(best * float(nominal_deg), MIN_WIDTH_DEG)
     return BeamWidthEstimate(best, float(nominal_deg), len(crops), reason,
                              [float(f) for f in factors], [float(c) for c in costs])
+
+
+class _WidthScan:
+    """Total truncated-quadratic cost of the captures' cone fits at a width (memoised); each fit
+    starts warm from the same capture's fit at the nearest width already scanned."""
+
+    def __init__(self, crops, r, h0, scale):
+        self.crops, self.r, self.h0, self.scale = crops, r, h0, scale
+        self.costs: dict[float, float] = {}
+        self.centers: dict[float, list] = {}
+
+    def cost(self, f: float) -> float:
+        f = float(f)
+        if f in self.costs:
+            return self.costs[f]
+        near = min(self.centers, key=lambda g: abs(g - f)) if self.centers else None
+        h, total, centers = self.h0 * f, 0.0, []
+        for j, (X, c) in enumerate(self.crops):
+            start = c if near is None else self.centers[near][j]
+            fit = fit_sphere(X, start, self.r, model="cone", half_angle_rad=h, sigma0_m=self.scale,
+                             warm=near is not None)
+            cc = fit.center_m if fit.ok else c
+            centers.append(cc)
+            R = np.linalg.norm(X, axis=1)
+            a, b = cone_residuals(cc, self.r, R, X / R[:, None], h)
+            total += float(np.sum(np.minimum(np.hypot(a, b) / self.scale, 3.0) ** 2))
+        self.costs[f], self.centers[f] = total, centers
+        return total
+
+
+def _search_order(scan: _WidthScan, factors: np.ndarray):
+    """Coarse to fine over ``factors`` (sorted): every other factor first, then the neighbours of
+    the best one, until the best has both its grid neighbours scanned (the costs are smooth in
+    the width, so the full grid's minimum and its parabola are found with about half the fits).
+    Yields each factor as it is scanned."""
+    fs = [float(f) for f in np.sort(np.asarray(factors, float))]
+    for i in range(0, len(fs), 2):
+        scan.cost(fs[i])
+        yield fs[i]
+    if (len(fs) - 1) % 2:
+        scan.cost(fs[-1])
+        yield fs[-1]
+    while True:
+        b = fs.index(min(scan.costs, key=scan.costs.get))
+        todo = [fs[j] for j in (b - 1, b + 1) if 0 <= j < len(fs) and fs[j] not in scan.costs]
+        if not todo:
+            return
+        for f in todo:
+            scan.cost(f)
+            yield f
 
 
 def _detect_any_width(P: np.ndarray, r: float, nominal_deg: float):
