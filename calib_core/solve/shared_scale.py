@@ -13,7 +13,10 @@ parameter of the sonar, so it is estimated from all of them together:
   diameter's tolerance, which is a systematic common to all cameras (every range is proportional
   to the one assumed diameter), so it does not average down with more cameras;
 - sigma of ``s``: ``sqrt(v_+ / sum(1 / V_c) + (diameter_sigma / diameter)^2)`` with
-  ``v_+ = max(1, v)``.
+  ``v_+ = max(1, v)``;
+- the cameras' agreement is tested too (``b = sum (s_c - s)^2 / V_c / (n - 1)``, ``b / v ~ F(n-1, dof)``);
+  when they disagree at the same level, ``v`` is replaced by ``b`` in the test and the sigma
+  (the scatter between cameras is then the scale's noise level) and the note says so.
 
 When the scaled model is chosen every camera's pose is refitted with ranges at the shared ``s``;
 its covariance adds the uncertainty of ``s`` through the pose's correlation with it, and the
@@ -89,16 +92,20 @@ def _combine(fits: list[CameraScaleFit], rel_sigma: float) -> tuple[float, float
     chi2_shared = sum(f.chi2_free for f in fits) + spread
     dof = sum(f.dof_free for f in fits) + len(fits) - 1
     v = chi2_shared / dof if dof > 0 else math.nan
+    # cameras that disagree about s beyond their own noise (e.g. a bias of one camera's ranges):
+    # the scatter between them, not the fits' noise, is then the noise level of s (Birge ratio)
+    b = spread / (len(fits) - 1)
+    p_spread = float(fdtrc(len(fits) - 1, dof, b / v)) if v > 0 else 1.0
+    v_s = max(v, b) if p_spread < SCALE_TEST_ALPHA else v
     d = max(sum(f.chi2_fixed for f in fits) - chi2_shared, 0.0)
-    F = d / v if v > 0 else math.inf
+    F = d / v_s if v_s > 0 else math.inf
     if rel_sigma > 0 and math.isfinite(F):
-        F *= v * var_stat / (v * var_stat + rel_sigma**2)
+        F *= v_s * var_stat / (v_s * var_stat + rel_sigma**2)
     p = float(fdtrc(1.0, dof, F)) if dof > 0 and math.isfinite(F) else 0.0
-    p_spread = float(fdtrc(len(fits) - 1, dof, spread / (len(fits) - 1) / v)) if len(fits) > 1 and v > 0 else 1.0
-    sigma = math.sqrt(var_stat * max(1.0, v) + rel_sigma**2)
+    sigma = math.sqrt(var_stat * max(1.0, v_s) + rel_sigma**2)
     test = {"name": "likelihood-ratio F test of scale = 1", "F": F, "dof": [1, int(dof)], "p_value": p,
             "level": SCALE_TEST_ALPHA, "scaled_model_chosen": p < SCALE_TEST_ALPHA,
-            "cameras_agree_p_value": p_spread}
+            "cameras_agree_p_value": p_spread, "cameras_agree": p_spread >= SCALE_TEST_ALPHA}
     return s, sigma, test
 
 
@@ -146,6 +153,10 @@ def shared_scale(cams: dict, mode: str, rel_sigma: float, robust: str | None = N
     per = {f.name: {"value": f.s, "sigma": math.sqrt(f.var)} for f in fits}
     est = f"{s:.5f} ± {sigma:.5f}"
     names = " + ".join(f.name for f in fits)
+    if not test["cameras_agree"]:
+        names += (" (they disagree: " + ", ".join(f"{f.name} {f.s:.4f}" for f in fits) +
+                  f"; F test p = {test['cameras_agree_p_value']:.2g}; the sigma is widened to their scatter: check each "
+                  f"camera's intrinsics and the sphere's apparent size)")
     if mode == "always" or test["scaled_model_chosen"]:
         why = "forced (--scale)" if not test["scaled_model_chosen"] else \
             f"the data show a scale error (F test p = {test['p_value']:.2g} < {SCALE_TEST_ALPHA:g})"
