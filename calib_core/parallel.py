@@ -55,14 +55,29 @@ def _task(item):
         return cid, sensor, ("error", None if e.path is None else str(e.path), e.problem)
 
 
-def _beam_task(capture_ids, detections):
+def _crop_task(cid, detections):
+    """One capture's crop for the beam-width estimate (None when no sphere is found there)."""
     from calib_core.errors import SessionError
-    from calib_core.pipeline import session_beam_width
+    from calib_core.pipeline import beam_crop_of
 
     try:
-        return session_beam_width(_DATA, capture_ids, detections)
-    except SessionError as e:
-        return ("error", None if e.path is None else str(e.path), e.problem)
+        return beam_crop_of(_DATA, cid, detections)
+    except SessionError:
+        return None  # its own sonar task reports the problem
+
+
+def _scan_task(crops):
+    from calib_core.pipeline import beam_width_from_crops
+
+    return beam_width_from_crops(_DATA, crops)
+
+
+def _cloud_readers(data, todo) -> list[str]:
+    """open3d when sonar tasks will read .ply / .pcd clouds: imported once in the fork server
+    rather than once in every worker (it takes about a second)."""
+    cids = {cid for cid, sensor in todo if sensor == "sonar"}
+    suffixes = {data.session.capture(c).cloud_path.suffix.lower() for c in cids}
+    return ["open3d"] if suffixes & {".ply", ".pcd"} else []
 
 
 def _prepare(data, todo) -> None:
@@ -111,24 +126,34 @@ def _run_pool(data, todo, progress, n: int, beam_ids: list, beam_detections: dic
     import multiprocessing as mp
     from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 
+    from calib_core.pipeline import beam_capture_ids
+
     _prepare(data, todo)
     ctx = mp.get_context("forkserver")
-    ctx.set_forkserver_preload(["calib_core.pipeline", "calib_core.detect.image", "calib_core.detect.sonar"])
+    ctx.set_forkserver_preload(["calib_core.pipeline", "calib_core.detect.image", "calib_core.detect.sonar",
+                                *_cloud_readers(data, todo)])
     results: list = [None] * len(todo)
     if progress:
         progress(0, len(todo), f"detecting in {n} processes")
     later = [k for k, t in enumerate(todo) if beam_ids and t[1] == "sonar"]
+    crop_ids = beam_capture_ids(beam_ids) if beam_ids else []
+    crops: dict = {}
     with ProcessPoolExecutor(n, mp_context=ctx, initializer=_init, initargs=(data,)) as ex:
-        futures = {ex.submit(_beam_task, beam_ids, beam_detections): -1} if beam_ids else {}  # first: the longest
+        # first the beam width's crops (its scan and then every sonar task wait for them)
+        futures = {ex.submit(_crop_task, cid, beam_detections): ("crop", cid) for cid in crop_ids}
         futures.update({ex.submit(_task, (*t, None)): k for k, t in enumerate(todo) if k not in later})
         done = 0
         while futures:
             finished, _ = wait(futures, return_when=FIRST_COMPLETED)
             for f in finished:
                 k = futures.pop(f)
+                if isinstance(k, tuple):
+                    crops[k[1]] = f.result()
+                    if len(crops) == len(crop_ids):
+                        futures[ex.submit(_scan_task, [crops[c] for c in crop_ids])] = -1
+                    continue
                 if k == -1:
-                    out = _unwrap(None, None, f.result())[2]
-                    data.beam_width_deg = out
+                    data.beam_width_deg = f.result()
                     beam = data.effective_beam_width_deg
                     futures.update({ex.submit(_task, (*todo[j], beam)): j for j in later})
                     continue

@@ -136,13 +136,39 @@ def estimate_session_beam_width(data: SessionData, clouds: dict[str, np.ndarray]
     from calib_core.detect.sonar_beam import estimate_beam_width_deg
 
     ids = list(clouds)
-    centers = []
-    for cid in ids:
-        e = detections.get(cid, {}).get("sonar")
-        centers.append(np.asarray(e["center"], float) if is_operator_entry(e) and e.get("center") else None)
     nominal = data.session.beam_width_deg or 1.0
     est = estimate_beam_width_deg([clouds[c] for c in ids], data.session.sphere_radius_m, nominal_deg=nominal,
-                                  centers_sonar_m=centers)
+                                  centers_sonar_m=[_operator_center(detections, c) for c in ids])
+    return None if est.reason else float(est.beam_width_deg)
+
+
+def _operator_center(detections: dict, cid: str):
+    e = detections.get(cid, {}).get("sonar")
+    return np.asarray(e["center"], float) if is_operator_entry(e) and e.get("center") else None
+
+
+def beam_capture_ids(capture_ids: list[str]) -> list[str]:
+    """The captures the beam-width estimate looks at (spread over the session, at most its maximum)."""
+    from calib_core.detect.sonar_beam import MAX_CAPTURES, _spread_order
+
+    return [capture_ids[i] for i in _spread_order(len(capture_ids))][:MAX_CAPTURES]
+
+
+def beam_crop_of(data: SessionData, cid: str, detections: dict):
+    """One capture's crop for the beam-width estimate (sonar_beam.beam_crop), loaded from its cloud."""
+    from calib_core.detect.sonar_beam import beam_crop
+    from calib_core.io.clouds import load_cloud
+
+    P = load_cloud(data.session.capture(cid).cloud_path).points_m
+    return beam_crop(P, data.session.sphere_radius_m, data.session.beam_width_deg or 1.0,
+                     _operator_center(detections, cid))
+
+
+def beam_width_from_crops(data: SessionData, crops: list) -> float | None:
+    """The session's effective beam width from the crops of :func:`beam_crop_of`, or None."""
+    from calib_core.detect.sonar_beam import estimate_from_crops
+
+    est = estimate_from_crops(crops, data.session.sphere_radius_m, data.session.beam_width_deg or 1.0)
     return None if est.reason else float(est.beam_width_deg)
 
 

@@ -64,28 +64,46 @@ def estimate_beam_width_deg(clouds_sonar_m: list, sphere_radius_m: float,
         progress: optional ``progress(done, total, label)``.
     """
     r = float(sphere_radius_m)
-    factors = np.asarray(DEFAULT_FACTORS if factors is None else factors, float)
-    h0 = np.radians(nominal_deg) / 2.0
-    crops, sigmas = [], []
+    crops = []
     n = len(clouds_sonar_m)
+    n_f = len(DEFAULT_FACTORS if factors is None else factors)
     for k, i in enumerate(_spread_order(n)):
         if len(crops) >= MAX_CAPTURES:
             break
-        P = np.asarray(clouds_sonar_m[i], float).reshape(-1, 3)
-        c = None if centers_sonar_m is None else centers_sonar_m[i]
-        if c is None:
-            det = _detect_any_width(P, r, nominal_deg)
-            if det is None:
-                continue
-            c, sig = det.center_sonar_m, det.extras.get("sigma_range_m", 0.005)
-        else:
-            sig = 0.005
-        X = P[crop_ball(P, np.asarray(c, float), 1.6 * r + np.linalg.norm(c) * np.tan(h0) + 0.05)]
-        if len(X) >= 12:
-            crops.append((X, np.asarray(c, float)))
-            sigmas.append(float(sig))
+        crop = beam_crop(clouds_sonar_m[i], r, nominal_deg, None if centers_sonar_m is None else centers_sonar_m[i])
+        if crop is not None:
+            crops.append(crop)
         if progress is not None:
-            progress(k + 1, n + len(factors), "beam width: captures")
+            progress(k + 1, n + n_f, "beam width: captures")
+    return estimate_from_crops(crops, r, nominal_deg, factors, progress, n)
+
+
+def beam_crop(cloud_sonar_m, sphere_radius_m: float, nominal_deg: float = 1.0, center_sonar_m=None):
+    """One capture's share of the estimate: (points around the sphere, its centre, range sigma),
+    or None when no sphere is found there. ``center_sonar_m``: a known centre (else detected)."""
+    r = float(sphere_radius_m)
+    h0 = np.radians(nominal_deg) / 2.0
+    P = np.asarray(cloud_sonar_m, float).reshape(-1, 3)
+    c, sig = center_sonar_m, 0.005
+    if c is None:
+        det = _detect_any_width(P, r, nominal_deg)
+        if det is None:
+            return None
+        c, sig = det.center_sonar_m, det.extras.get("sigma_range_m", 0.005)
+    c = np.asarray(c, float)
+    X = P[crop_ball(P, c, 1.6 * r + np.linalg.norm(c) * np.tan(h0) + 0.05)]
+    return (X, c, float(sig)) if len(X) >= 12 else None
+
+
+def estimate_from_crops(crops: list, sphere_radius_m: float, nominal_deg: float = 1.0, factors=None,
+                        progress=None, n: int = 0) -> BeamWidthEstimate:
+    """The width scan over the captures' crops (:func:`beam_crop`; None entries are skipped)."""
+    r = float(sphere_radius_m)
+    factors = np.asarray(DEFAULT_FACTORS if factors is None else factors, float)
+    h0 = np.radians(nominal_deg) / 2.0
+    crops = [c for c in crops if c is not None][:MAX_CAPTURES]
+    sigmas = [c[2] for c in crops]
+    crops = [(X, c) for X, c, _ in crops]
     if len(crops) < MIN_CAPTURES:
         return BeamWidthEstimate(float(nominal_deg), float(nominal_deg), len(crops),
                                  f"needs at least {MIN_CAPTURES} detected spheres")
