@@ -96,8 +96,11 @@ def beam_crop(cloud_sonar_m, sphere_radius_m: float, nominal_deg: float = 1.0, c
 
 
 def estimate_from_crops(crops: list, sphere_radius_m: float, nominal_deg: float = 1.0, factors=None,
-                        progress=None, n: int = 0) -> BeamWidthEstimate:
-    """The width scan over the captures' crops (:func:`beam_crop`; None entries are skipped)."""
+                        progress=None, n: int = 0, search: str = "coarse-to-fine") -> BeamWidthEstimate:
+    """The width scan over the captures' crops (:func:`beam_crop`; None entries are skipped).
+
+    ``search``: "coarse-to-fine" (default, see :func:`_search_order`) or "grid" (every factor,
+    every fit cold from the detected centre: the reference it is benchmarked against)."""
     r = float(sphere_radius_m)
     factors = np.asarray(DEFAULT_FACTORS if factors is None else factors, float)
     h0 = np.radians(nominal_deg) / 2.0
@@ -108,8 +111,9 @@ def estimate_from_crops(crops: list, sphere_radius_m: float, nominal_deg: float 
         return BeamWidthEstimate(float(nominal_deg), float(nominal_deg), len(crops),
                                  f"needs at least {MIN_CAPTURES} detected spheres")
     scale = max(float(np.median(sigmas)), 1e-3)
-    scan = _WidthScan(crops, r, h0, scale)
-    for k, f in enumerate(_search_order(scan, factors)):
+    scan = _WidthScan(crops, r, h0, scale, warm=search != "grid")
+    order = _search_order(scan, factors) if search != "grid" else _grid_order(scan, factors)
+    for k, f in enumerate(order):
         if progress is not None:
             progress(n + k + 1, n + len(factors), "beam width: scan")
     factors = np.asarray(sorted(scan.costs), float)
@@ -131,8 +135,8 @@ class _WidthScan:
     """Total truncated-quadratic cost of the captures' cone fits at a width (memoised); each fit
     starts warm from the same capture's fit at the nearest width already scanned."""
 
-    def __init__(self, crops, r, h0, scale):
-        self.crops, self.r, self.h0, self.scale = crops, r, h0, scale
+    def __init__(self, crops, r, h0, scale, warm: bool = True):
+        self.crops, self.r, self.h0, self.scale, self.warm = crops, r, h0, scale, warm
         self.costs: dict[float, float] = {}
         self.centers: dict[float, list] = {}
 
@@ -140,7 +144,7 @@ class _WidthScan:
         f = float(f)
         if f in self.costs:
             return self.costs[f]
-        near = min(self.centers, key=lambda g: abs(g - f)) if self.centers else None
+        near = min(self.centers, key=lambda g: abs(g - f)) if self.centers and self.warm else None
         h, total, centers = self.h0 * f, 0.0, []
         for j, (X, c) in enumerate(self.crops):
             start = c if near is None else self.centers[near][j]
@@ -153,6 +157,13 @@ class _WidthScan:
             total += float(np.sum(np.minimum(np.hypot(a, b) / self.scale, 3.0) ** 2))
         self.costs[f], self.centers[f] = total, centers
         return total
+
+
+def _grid_order(scan: _WidthScan, factors):
+    """Every factor in turn (the reference search)."""
+    for f in factors:
+        scan.cost(f)
+        yield float(f)
 
 
 def _search_order(scan: _WidthScan, factors: np.ndarray):
