@@ -84,6 +84,9 @@ def generate_session(out_dir, preset, seed: int, progress=None, **overrides) -> 
             if ok_extra(cand) and sphere_in_image(cam0, invert_T(T_wc0), cand, radius, 2.0):
                 image_centers[moved_idx] = cand
                 break
+    decoy_idx = -1
+    if P.decoy_hidden:
+        decoy_idx = (moved_idx + 1 + int(r_rig.integers(P.n_captures - 1))) % P.n_captures
     if seabed_z is not None:
         static += world.seabed_scene(r_scene, rig, seabed_z, centers + image_centers)
 
@@ -116,6 +119,9 @@ def generate_session(out_dir, preset, seed: int, progress=None, **overrides) -> 
         if is_target:
             scan_scene = Scene(tuple(static + target_parts(centers[k], r_cap) + extra))
             img_scene = scan_scene if k != moved_idx else Scene(tuple(static + target_parts(image_centers[k], r_cap) + extra))
+            if k == decoy_idx:
+                trick = world.decoy_and_occluder(r_cap, rig, centers[k], radius, style, P.bright)
+                img_scene = Scene(tuple(img_scene.primitives) + tuple(trick))
         else:
             scan_scene = img_scene = Scene(tuple(static + world.flange_assembly(r_cap, rig, surface_z)))
         cloud = simulate_scan(scan_scene, rig.T_world_sonar, cfg, r_cap)

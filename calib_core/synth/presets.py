@@ -31,6 +31,9 @@ class Preset:
     cloud_format: suffix of the cloud files (".ply", ".pcd", ".npy", ".xyz").
     scale: image resolution factor (1.0 = 1920x1080); K scales with it.
     corner_fraction: share of captures aimed near an image corner.
+    decoy_hidden: one capture (not the moved one) shows cam1 a decoy that looks exactly like the
+        target beside it while a panel hides half of the true target (image only): a wrong image
+        detection (calib_core.synth.world.decoy_and_occluder).
     """
 
     name: str
@@ -53,6 +56,7 @@ class Preset:
     scale: float = 1.0
     corner_fraction: float = 0.3
     jpeg_quality: int = 90
+    decoy_hidden: bool = False
 
     def with_(self, **changes) -> "Preset":
         """A copy with some fields changed (e.g. ``scale=0.25`` for fast tests)."""
@@ -81,6 +85,11 @@ _LIST = [
     Preset("wrongdiam", "session.yaml states a sphere diameter ~30 % off the true one", n_captures=8,
            pan_step_deg=0.75, diameter_factor=1.3),
 ]
+
+_LIST.append(Preset(
+    "review", "the workbench's review loop: one capture whose image shows a look-alike decoy beside the "
+    "half-hidden target (a wrong image detection) and one whose target moved between scan and image",
+    n_captures=8, pan_step_deg=0.75, moved=True, decoy_hidden=True))
 
 PRESETS: dict[str, Preset] = {p.name: p for p in _LIST}
 
