@@ -34,6 +34,7 @@ class Workbench:
 
     def __init__(self, session_path=None, host: str = "127.0.0.1", port: int = 8080,
                  allowed_roots=None, uploads_dir=None, verbose: bool = False):
+        from app.flags import Diagnoser, FlagsPanel
         from app.fused import FusedPanel
         from app.images import ImagePanels
         from app.review import ReviewPanel
@@ -62,8 +63,10 @@ class Workbench:
         self.tab_fused = tabs.add_tab("Fused")
         self.tab_session = tabs.add_tab("Session")
 
+        self.bus = self.state.bus
         self.scene3d = Scene3D(self)
         self.images = ImagePanels(self)
+        self.flags = FlagsPanel(self)
         self.review = ReviewPanel(self)
         self.solve = SolvePanel(self)
         self.fused = FusedPanel(self)
@@ -71,7 +74,8 @@ class Workbench:
 
         self.refresher.on("session", self._on_session)
         self.refresher.on("after-session", self._after_session)
-        self.state.subscribe(self.refresher.mark)
+        self.state.subscribe(self.refresher.mark)  # every named state event asks for a refresh of that name
+        self.diagnoser = Diagnoser(self.state)
         self.server.on_client_connect(self._on_connect)
         if session_path is not None:
             try:
@@ -96,12 +100,14 @@ class Workbench:
     def stop(self) -> None:
         self.refresher.wait_idle(10)
         self.refresher.stop()
+        self.diagnoser.stop()
         self.server.stop()
 
     def wait_idle(self, timeout: float = 60.0) -> bool:
         """Block until running jobs and pending display refreshes are done (tests, benchmarks)."""
         self.refresher.wait_idle(timeout)  # a session refresh may start the detection job
         self.jobs.join(timeout)
+        self.diagnoser.wait_idle(timeout)
         return self.refresher.wait_idle(timeout)
 
     # ---- session -----------------------------------------------------------

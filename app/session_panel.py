@@ -12,6 +12,17 @@ from calib_core.errors import SessionError
 from calib_core.results import calibration_path
 
 
+def calibration_line(cal: dict | None) -> str:
+    """The Session tab's calibration line: what is in use now."""
+    if not cal:
+        return "none yet (press Solve)"
+    cams = cal.get("cameras") or {}
+    rms = ", ".join(f"{c} RMS {v['rms_reprojection_px']:.2f} px" for c, v in cams.items()
+                    if isinstance(v.get("rms_reprojection_px"), (int, float)))
+    when = cal.get("created") or cal.get("timestamp") or ""
+    return f"results/calibration.json ({rms or ', '.join(cams)}){' ' + str(when) if when else ''}"
+
+
 class SessionPanel:
     def __init__(self, wb):
         self.wb = wb
@@ -29,6 +40,7 @@ class SessionPanel:
         self.upload.on_upload(g(self._on_upload))
         self.dl_cal.on_click(guarded(wb.server, "Download failed")(lambda e: self._download(e, "calibration")))
         self.dl_det.on_click(guarded(wb.server, "Download failed")(lambda e: self._download(e, "detections")))
+        wb.refresher.on("calibration", self.refresh)
 
     def _open_path(self, event) -> None:
         text = self.path.value.strip()
@@ -59,7 +71,7 @@ class SessionPanel:
                  f"- sonar: {s.sonar_model or '-'}; sound speed {s.sound_speed_m_s or '-'} m/s",
                  f"- cameras: {', '.join(s.cameras)}; captures: {len(s.captures)}",
                  f"- ground truth: {'yes (magenta in 3D)' if self.wb.state.ground_truth else 'no'}",
-                 f"- calibration: {'results/calibration.json' if cal else 'none yet'}"]
+                 f"- calibration: {calibration_line(cal)}"]
         if s.measured_m:
             lines.append("- measured: " + json.dumps(s.measured_m))
         self.info.content = "\n".join(lines)

@@ -117,6 +117,8 @@ class WorkbenchState:
         self.bus = EventBus()
         self.modes = ClientModes()
         self.flags: list = []  # calib_core.diagnose.Flag, newest diagnosis
+        self.flags_note = ""
+        self._centres: OrderedDict = OrderedDict()
         self._det_sig = None
         self._images: OrderedDict = OrderedDict()
         self._clouds: OrderedDict = OrderedDict()
@@ -461,3 +463,45 @@ class WorkbenchState:
         if isinstance(scale, dict):
             scale = scale.get("value", 1.0)
         return np.asarray(c["T_cam_sonar"], float), float(scale or 1.0)
+
+    def reprojected_uv(self, cid: str, cam: str):
+        """Raw pixel of capture ``cid``'s sonar centre through the current calibration, or None.
+
+        The one definition of a capture's residual: |image centre - this| (px), shown by every panel.
+        """
+        import numpy as np
+
+        from calib_core import fusion
+
+        cal, son = self.T_cam_sonar(cam), (self.entry(cid, SENSOR_SONAR) or {}).get("center")
+        if cal is None or son is None:
+            return None
+        key = (cid, cam, self.cal_version, tuple(son))
+        with self.lock:
+            if key in self._centres:
+                return self._centres[key]
+        T, s = cal
+        uv, _d, valid = fusion.project_cloud(np.asarray([son], float) / s, T, self.camera(cam))
+        with self.lock:
+            self._centres[key] = uv[0] if valid[0] else None
+            while len(self._centres) > 512:
+                self._centres.popitem(last=False)
+        return self._centres[key]
+
+    def residual_px(self, cid: str, cam: str) -> float | None:
+        """|image centre - reprojected sonar centre| (px) with the current calibration, or None."""
+        import numpy as np
+
+        e = self.entry(cid, cam) or {}
+        if e.get("center") is None or e.get("status") == "rejected":
+            return None
+        uv = self.reprojected_uv(cid, cam)
+        return None if uv is None else float(np.linalg.norm(np.asarray(e["center"], float) - uv))
+
+    def flag_for(self, cid: str, sensor: str | None = None):
+        """The newest diagnosis's flag on capture ``cid`` (and ``sensor``: a camera, or "sonar"), or None."""
+        for f in list(self.flags):
+            if f.capture == cid and (sensor is None or f.sensor in (sensor, "capture")):
+                return f
+        return None
+

@@ -153,7 +153,12 @@ def test_fused_view_colours_the_cloud_from_the_image(wb):
     wb.fused.capture.value = "p02"
     wb.fused._run(SimpleNamespace(client=None, client_id=None))
     assert wb.wait_idle(30)
-    assert wb.fused.node is not None and wb.scene3d.hidden == {"p02"}
+    assert wb.fused.node is not None
+    assert wb.scene3d.hidden == {c.id for c in wb.state.session.captures}  # the fused cloud alone on screen
+    assert not any(n.visible for n in wb.scene3d.cloud_nodes.values())
+    wb.fused.show.value = False
+    assert wb.wait_idle(30)
+    assert wb.scene3d.hidden == set() and wb.scene3d.cloud_nodes[wb.state.selected].visible
 
 
 def test_drag_handle_refits_the_sonar_centre_on_release(wb, monkeypatch):
