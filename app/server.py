@@ -56,6 +56,8 @@ class Workbench:
         self.title = gui.add_markdown("**sonarcal workbench**: no session open")
         self.progress_label = gui.add_markdown("", visible=False)
         self.progress = gui.add_progress_bar(0.0, visible=False, animated=True)
+        self.solve_button = gui.add_button(  # above the tabs: the review loop never switches tab to solve
+            "Solve", color="blue", hint="Detect what is not validated, solve every camera, save results/calibration.json")
         tabs = gui.add_tab_group()
         self.tab_review = tabs.add_tab("Review")
         self.tab_solve = tabs.add_tab("Solve")

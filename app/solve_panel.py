@@ -128,9 +128,8 @@ class SolvePanel:
     def __init__(self, wb):
         self.wb = wb
         gui = wb.server.gui
+        self.button = wb.solve_button
         with wb.tab_solve:
-            self.button = gui.add_button("Solve", color="blue",
-                                         hint="Detect what is not validated, solve every camera, save results/calibration.json")
             self.scale = gui.add_checkbox("Estimate range scale", False,
                                           hint="Sound-speed error (like 'sonarcal calibrate --scale'); needs two cameras and a stereo transform")
             self.robust = gui.add_dropdown("Robust loss", ("none", "huber", "cauchy"), initial_value="none")
