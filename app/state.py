@@ -471,8 +471,6 @@ class WorkbenchState:
         """
         import numpy as np
 
-        from calib_core import fusion
-
         cal, son = self.T_cam_sonar(cam), (self.entry(cid, SENSOR_SONAR) or {}).get("center")
         if cal is None or son is None:
             return None
@@ -481,9 +479,10 @@ class WorkbenchState:
             if key in self._centres:
                 return self._centres[key]
         T, s = cal
-        uv, _d, valid = fusion.project_cloud(np.asarray([son], float) / s, T, self.camera(cam))
+        P = T[:3, :3] @ (np.asarray(son, float) / s) + T[:3, 3]  # as the solver's residual (calib_core.solve.model)
+        uv = self.camera(cam).distort((P[:2] / P[2])[None])[0] if P[2] > 1e-3 else None
         with self.lock:
-            self._centres[key] = uv[0] if valid[0] else None
+            self._centres[key] = uv
             while len(self._centres) > 512:
                 self._centres.popitem(last=False)
         return self._centres[key]

@@ -83,7 +83,8 @@ def test_verdicts_follow_the_stated_thresholds():
     assert wording.verdict(0.97, 0.5, False) == "good"
     assert wording.verdict(0.97, 3.0, False) == "doubtful"
     assert wording.verdict(0.6, None, False) == "doubtful"
+    assert wording.verdict(0.75, None, False) == "good"
     assert wording.verdict(0.97, 0.5, True) == "bad"
     assert wording.verdict(0.3, None, False) == "bad"
     assert wording.verdict(None, 6.0, False) == "bad"
-    assert "2 px" in wording.THRESHOLDS_NOTE and "0.8" in wording.THRESHOLDS_NOTE
+    assert "2 px" in wording.THRESHOLDS_NOTE and "0.7" in wording.THRESHOLDS_NOTE

@@ -243,12 +243,14 @@ def test_operator_session_in_chromium(workbench, browser, session_root):
     page2.set_viewport_size({"width": 1000, "height": 700})  # a smaller canvas: less software rendering
     page2.goto(wb.url)
     page2.get_by_text("Captures (worst first)").wait_for()
-    wait_for(lambda: re.search(r"p03\s+rejected", page_text(page2)), 20, "p03 rejected in the second page")
+    wait_for(lambda: re.search(r"p03\s+\S*\s*rejected", page_text(page2)), 20, "p03 rejected in the second page")
     # p02 corrected, with the residual of the new calibration (the review table, no tab switch: with
     # two pages in software WebGL, input events are slow)
-    m = wait_for(lambda: re.search(r"p02\s+auto [\d.]+\s+corrected · ([\d.]+) px", page_text(page2)), 20,
+    m = wait_for(lambda: re.search(r"p02\s+\S+\s+auto\s+[\d.]+\s+\S+\s+corrected\s+·\s+([\d.]+)\s+px", page_text(page2)), 20,
                  "p02's residual in the second page")
-    assert abs(float(m.group(1)) - row["residual_norm_px"]) <= 0.051
+    # one definition, shown alike (to the last digit, give or take the solver's own re-detection of
+    # automatic entries, which can move a sonar centre by a fraction of a millimetre)
+    assert abs(float(m.group(1)) - row["residual_norm_px"]) <= 0.011
     page2.close()
 
     # 6. undo from the page restores p04's automatic entry (and records it)
