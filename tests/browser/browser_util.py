@@ -14,29 +14,6 @@ ARTIFACTS = Path(__file__).resolve().parents[2] / "test-artifacts"
 CHROMIUM_ARGS = ["--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
                  "--disable-background-networking", "--disable-component-update", "--disable-sync"]
 
-# Records, in the page, when each websocket message arrives (and its size), and when the
-# last pointer press happened: the browser's own clock measures click -> overlay.
-WS_TIMING_JS = """
-(() => {
-  window.__wsLog = [];
-  window.__lastDown = null;
-  window.addEventListener('pointerdown', () => { window.__lastDown = performance.now(); }, true);
-  const Orig = window.WebSocket;
-  window.WebSocket = function (...args) {
-    const ws = new Orig(...args);
-    ws.addEventListener('message', (ev) => {
-      const n = ev.data && (ev.data.byteLength !== undefined ? ev.data.byteLength : (ev.data.size || ev.data.length || 0));
-      const t = performance.now();
-      requestAnimationFrame(() => window.__wsLog.push([t, n, performance.now()]));
-    });
-    return ws;
-  };
-  window.WebSocket.prototype = Orig.prototype;
-  Object.assign(window.WebSocket, Orig);
-})();
-"""
-
-
 def wait_for(cond, timeout=60.0, what="condition", poll=0.05):
     end = time.monotonic() + timeout
     while time.monotonic() < end:
@@ -58,7 +35,6 @@ def chromium(profile_dir, width=1500, height=860):
         ctx = p.chromium.launch_persistent_context(str(profile_dir), executable_path=exe, headless=True,
                                                    args=CHROMIUM_ARGS, viewport={"width": width, "height": height})
         ctx.set_default_timeout(30_000)
-        ctx.add_init_script(WS_TIMING_JS)
         try:
             yield ctx
         finally:
@@ -125,11 +101,16 @@ def disk_detections(root):
     return load_detections(load_session(root))
 
 
-def last_overlay_ms(page, min_bytes: int = 4000):
-    """ms from the last pointer press to the first big websocket message after it (an image),
-    drawn (the next animation frame), in the page's clock; None if none yet."""
-    down, log = page.evaluate("[window.__lastDown, window.__wsLog]")
-    if down is None:
-        return None
-    after = [drawn for t, n, drawn in log if t > down and n >= min_bytes]
-    return (after[0] - down) if after else None
+class FrameLog:
+    """Websocket frames the page receives (viser's socket lives in a web worker, which page
+    scripts cannot see; Playwright can): (perf_counter seconds, bytes) per frame."""
+
+    def __init__(self, page):
+        self.frames: list = []
+        page.on("websocket", lambda ws: ws.on("framereceived", self._add))
+
+    def _add(self, payload) -> None:
+        self.frames.append((time.perf_counter(), len(payload)))
+
+    def first_big_after(self, t0: float, min_bytes: int = 4000):
+        return next((t for t, n in list(self.frames) if t > t0 and n >= min_bytes), None)
