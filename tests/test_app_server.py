@@ -179,3 +179,63 @@ def test_drag_handle_refits_the_sonar_centre_on_release(wb, monkeypatch):
     wb.review._on_drag(ev("end"))
     e = load_detections(load_session(wb.state.session.root))["p01"]["sonar"]
     assert e["status"] == "corrected" and e["center"] == [0.5, 0.25, 3.0] and e["history"][-1]["action"] == "drag"
+
+
+def test_click_messages_say_a_failed_refit_plainly():
+    from app.images import click_message
+
+    ok = click_message("p01", "cam2", {"center": [10.0, 20.0], "refit": True}, True)
+    failed = click_message("p01", "cam2", {"center": [10.0, 20.0], "refit": False, "refit_reason": "no sphere"}, True)
+    plain = click_message("p01", "cam2", {"center": [10.0, 20.0], "refit": False}, False)
+    assert ok[2] == "green" and "cam2 corrected" in ok[0]
+    assert failed[2] != "green" and "refit failed" in failed[0] and "no sphere" in failed[1]
+    assert plain[2] == "green" and "clicked centre" in plain[1]
+
+
+def test_a_click_corrects_the_camera_looked_through_and_refit_uses_the_sphere_size(wb, monkeypatch):
+    import app.images as images
+
+    seen = {}
+
+    def fake_refit(data, cid, cam, uv, radius):
+        seen.update(cid=cid, cam=cam, radius=radius)
+        return {"status": "corrected", "center": [float(v) for v in uv], "refit": True}
+
+    monkeypatch.setattr(images, "refit_image", fake_refit)
+    wb.images.viewing[7] = ("cam1", np.zeros(3))
+    assert wb.images.clicked_camera(7, "cam9") == "cam1"  # a board behind another: the viewed camera wins
+    assert wb.images.clicked_camera(8, "cam9") == "cam9"
+    calibrate_fake(wb, T_from_rotvec(np.zeros(3), np.array([0.0, 0.0, 0.0])))
+    e = wb.images.correct_click("p02", "cam1", (20.0, 21.0), "b")
+    assert e["refit"] is True and e["refit_asked"] is True and seen["cam"] == "cam1"
+    son = wb.state.entry("p02", "sonar")["center"]
+    fx = wb.state.camera("cam1").fx
+    assert abs(seen["radius"] - fx * wb.state.session.sphere_radius_m / son[2]) < 1e-9  # not the click radius
+
+
+def test_session_tab_follows_a_solve_and_events_are_named(wb):
+    from app.session_panel import calibration_line
+
+    assert "none yet" in wb.session_panel.info.content
+    calibrate_fake(wb, np.eye(4))
+    assert "results/calibration.json" in wb.session_panel.info.content
+    assert calibration_line({"cameras": {"cam1": {"rms_reprojection_px": 0.512}}}).endswith("(cam1 RMS 0.51 px)")
+    got = []
+    wb.state.bus.subscribe("corrected", lambda **kw: got.append(kw))
+    wb.images.refit.value = False
+    wb.images.correct_click("p01", "cam1", (5.0, 6.0), "b")
+    assert got == [{"cid": "p01", "sensor": "cam1"}]
+    with pytest.raises(KeyError):
+        wb.state.bus.publish("no-such-event")
+
+
+def test_review_table_colours_and_states_thresholds(wb):
+    from app.review import cell
+    from calib_core.diagnose.wording import THRESHOLDS_NOTE
+
+    calibrate_fake(wb, np.eye(4))
+    text = wb.review.table.content
+    assert THRESHOLDS_NOTE in text and "🟢 good" in text
+    c = cell({"status": "auto", "score": 0.95, "residual_px": 7.25, "found": True, "flag": None})
+    assert c.startswith("🔴") and "7.25\u00a0px" in c and " " not in c  # bad, and never wrapped mid-value
+    assert cell({"status": "rejected", "score": None, "residual_px": None, "found": False}).startswith("⚪")
