@@ -59,7 +59,7 @@ class ImagePanels:
             self.mask_opacity = gui.add_slider("Mask opacity", min=0.0, max=1.0, step=0.05, initial_value=0.45)
             self.refit = gui.add_checkbox("Refit near a click", True,
                                           hint="Off: the clicked pixel itself becomes the corrected centre")
-            self.board_depth = gui.add_slider("Image board distance (m)", min=0.1, max=3.0, step=0.05, initial_value=0.5)
+            self.board_depth = gui.add_slider("Image board distance (m)", min=0.1, max=3.0, step=0.05, initial_value=0.3)
         for h in (self.show_mask, self.mask_radius, self.mask_opacity, self.board_depth):
             h.on_update(lambda _e: wb.refresher.mark("overlay"))
         self.panels: dict = {}  # cam -> (gui image, view button)

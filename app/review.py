@@ -18,7 +18,15 @@ ALL = "all sensors"
 
 
 NBSP = "\u00a0"
-DOTS = {"good": "🟢", "doubtful": "🟡", "bad": "🔴"}
+COLOURS = {"good": "#1a9a3a", "doubtful": "#c98a00", "bad": "#d62728", "none": "#9a9a9a"}
+
+
+def dot(verdict: str) -> str:
+    """A coloured disc (a plain glyph: it shows without an emoji font)."""
+    return f'<span style="color:{COLOURS[verdict]}">●</span>'
+
+
+DOTS = {k: dot(k) for k in ("good", "doubtful", "bad")}
 
 
 def cell(c: dict | None) -> str:
@@ -27,10 +35,10 @@ def cell(c: dict | None) -> str:
         return "-"
     flagged = c.get("flag") is not None and c["status"] != "rejected"
     if c["status"] in ("rejected", "missing") or not c["found"]:
-        dot = "⚪" if c["status"] in ("rejected", "missing") else "🔴"
+        mark = dot("none") if c["status"] in ("rejected", "missing") else DOTS["bad"]
     else:
-        dot = DOTS[wording.verdict(c["score"], c["residual_px"], flagged)]
-    parts = [dot, c["status"]]
+        mark = DOTS[wording.verdict(c["score"], c["residual_px"], flagged)]
+    parts = [c["status"]]
     if not c["found"] and c["status"] not in ("rejected", "missing"):
         parts.append(f"(not found: {c.get('reason') or 'no sphere'})")
     elif c["score"] is not None:
@@ -39,7 +47,7 @@ def cell(c: dict | None) -> str:
         parts.append(f"· {c['residual_px']:.2f} px")
     if flagged:
         parts.append(f"⚠ {c['flag'].cause}")
-    return NBSP.join(str(p).replace(" ", NBSP) for p in parts)
+    return mark + NBSP + NBSP.join(str(p).replace(" ", NBSP) for p in parts)
 
 
 class ReviewPanel:
@@ -255,7 +263,8 @@ class ReviewPanel:
                  + " | ".join(cell(r["sensors"].get(x)) for x in ["sonar", *cams]) + " |" for r in rows]
         head = "| | capture | sonar | " + " | ".join(cams) + " |\n|---|---|---|" + "---|" * len(cams) + "\n"
         self.table.content = ("**Captures (worst first)**\n\n" + head + "\n".join(lines)
-                              + f"\n\n🟢 good · 🟡 doubtful · 🔴 bad · ⚪ rejected/none. {wording.THRESHOLDS_NOTE}. "
+                              + f"\n\n{DOTS['good']} good · {DOTS['doubtful']} doubtful · {DOTS['bad']} bad · "
+                              + f"{dot('none')} rejected/none. {wording.THRESHOLDS_NOTE}. "
                               + f"Score: the detector's (0-1). {wording.RESIDUAL_LABEL}.")
         self.details.content = self._details(sel)
         self.refresh_handle()

@@ -230,12 +230,13 @@ def test_session_tab_follows_a_solve_and_events_are_named(wb):
 
 
 def test_review_table_colours_and_states_thresholds(wb):
-    from app.review import cell
+    from app.review import DOTS, cell, dot
     from calib_core.diagnose.wording import THRESHOLDS_NOTE
 
     calibrate_fake(wb, np.eye(4))
     text = wb.review.table.content
-    assert THRESHOLDS_NOTE in text and "🟢 good" in text
+    assert THRESHOLDS_NOTE in text and f"{DOTS['good']} good" in text
     c = cell({"status": "auto", "score": 0.95, "residual_px": 7.25, "found": True, "flag": None})
-    assert c.startswith("🔴") and "7.25\u00a0px" in c and " " not in c  # bad, and never wrapped mid-value
-    assert cell({"status": "rejected", "score": None, "residual_px": None, "found": False}).startswith("⚪")
+    assert c.startswith(DOTS["bad"]) and "7.25\u00a0px" in c  # bad
+    assert " " not in c.split("</span>", 1)[1]  # and never wrapped mid-value
+    assert cell({"status": "rejected", "score": None, "residual_px": None, "found": False}).startswith(dot("none"))
