@@ -47,11 +47,6 @@ def main() -> int:
                 page.get_by_role("button", name="Solve", exact=True).click()
                 wait_for(lambda: (root / "results" / "calibration.json").exists(), 300, "a calibration")
                 wb.wait_idle(300)
-                page.get_by_role("button", name="View through cam1").click()
-                time.sleep(1.0)
-                page.get_by_role("tab", name="View", exact=True).click()
-                page.get_by_role("button", name="Frame the selected capture").click()
-                page.get_by_role("tab", name="Review", exact=True).click()
                 time.sleep(3.0)  # software WebGL: let the frames settle
                 page.screenshot(path=args.out)
         finally:
