@@ -10,6 +10,8 @@ from __future__ import annotations
 
 import logging
 import tempfile
+import threading
+import time
 from pathlib import Path
 
 import viser
@@ -19,6 +21,8 @@ from app.state import WorkbenchState
 from calib_core.errors import SessionError
 
 log = logging.getLogger("sonarcal.app")
+FIRST_CLIENT_WAIT_S = 2.0  # how long detection waits for a first page before starting anyway
+DETECT_GRACE_S = 1.0  # after the first page connects: let it receive the session first
 
 
 class Workbench:
@@ -51,6 +55,9 @@ class Workbench:
         self.server.gui.main_panel.dock_right()  # beside the 3D view, so the view is never covered
         self.refresher = Refresher(on_error=lambda kind, e: notify(self.server, None, f"Display of {kind} failed", error_text(e)))
         self.jobs = JobRunner(on_progress=self._progress, on_error=self._job_error)
+        self._first_client = threading.Event()  # detection waits for the first page to load (or a moment)
+        self._detect_due = threading.Event()
+        self._detect_due.set()
 
         gui = self.server.gui
         self.title = gui.add_markdown("**sonarcal workbench**: no session open")
@@ -108,6 +115,7 @@ class Workbench:
     def wait_idle(self, timeout: float = 60.0) -> bool:
         """Block until running jobs and pending display refreshes are done (tests, benchmarks)."""
         self.refresher.wait_idle(timeout)  # a session refresh may start the detection job
+        self._detect_due.wait(timeout)
         self.jobs.join(timeout)
         self.diagnoser.wait_idle(timeout)
         return self.refresher.wait_idle(timeout)
@@ -152,13 +160,29 @@ class Workbench:
             self.scene3d.home_view(client)
 
     def _after_session(self) -> None:
-        """Once the new session is on screen, detect what detections.yaml lacks (in the background)."""
+        """Once the new session is on screen, detect what detections.yaml lacks (in the background),
+        after the first page has received the session: detection competes for the same CPU."""
         pending = self.state.missing() if self.state.session is not None else []
-        if pending and self.jobs.running is None:
-            self.start_detection(pending, redetect_auto=False)
+        if not pending or self.jobs.running is not None:
+            return
+        self._detect_due.clear()
+        threading.Thread(target=self._deferred_detection, args=(pending, self.state.session),
+                         name="workbench-detect-later", daemon=True).start()
+
+    def _deferred_detection(self, pending, session) -> None:
+        try:
+            if self._first_client.wait(FIRST_CLIENT_WAIT_S):
+                time.sleep(DETECT_GRACE_S)
+            if self.state.session is session and self.jobs.running is None:
+                self.start_detection(pending, redetect_auto=False)
+        except Exception as e:  # reported in the page
+            self._job_error("detection", e)
+        finally:
+            self._detect_due.set()
 
     def _on_connect(self, client: viser.ClientHandle) -> None:
         self.scene3d.home_view(client)
+        self._first_client.set()
 
     # ---- jobs --------------------------------------------------------------
     def _progress(self, name: str, pct: float, label: str) -> None:

@@ -141,12 +141,19 @@ class SolvePanel:
         wb.refresher.on("flags", self.refresh)
 
     def _solve(self, event) -> None:
+        from calib_core.pipeline import detect_session, pending
         from calib_core.solve.calibrate import calibrate_session
 
         st = self.wb.state
 
         def job(progress):
             session, dets, _cal = st.snapshot()
+            if pending(session, dets, redetect_auto=False):  # detect only what has no entry yet
+                with st.lock:
+                    data = st.data
+                st.merge_automatic(detect_session(data, dets, progress=progress, redetect_auto=False), session=session)
+                session, dets, _cal = st.snapshot()
+            # the detections on screen, as reviewed: automatic ones are not detected again
             result = calibrate_session(session, dets, self.options(), progress=progress)
             st.set_calibration(result, session=session)
             notify(self.wb.server, None, "Solved", "results/calibration.json saved", color="green", seconds=4)
@@ -156,9 +163,10 @@ class SolvePanel:
         self.status.content = "Solving… (the workbench stays usable)"
 
     def options(self) -> dict:
-        """The options dict 'sonarcal calibrate' builds from its flags (same defaults)."""
+        """The options dict 'sonarcal calibrate' builds from its flags, on the detections as reviewed
+        (the job detects missing entries first; automatic ones shown on screen are used as they are)."""
         return {"estimate_scale": bool(self.scale.value), "robust": None if self.robust.value == "none" else self.robust.value,
-                "detect": True, "leave_one_out": True}
+                "detect": False, "leave_one_out": True}
 
     def job_finished(self, name: str) -> None:
         if name == "solve":

@@ -83,21 +83,26 @@ def bench_solve(ctx, wb, repeats: int = 2) -> dict:
     only_client(wb, before)
     wb.wait_idle(600)
     cal_path = wb.state.session.root / "results" / "calibration.json"
-    times = []
+    times, saved = [], []
+    page.get_by_role("tab", name="Solve", exact=True).click()  # where the result shows
     for k in range(repeats):
         old = cal_path.read_text() if cal_path.exists() else None
         t0 = time.perf_counter()
         page.get_by_role("button", name="Solve", exact=True).click()
         wait_for(lambda: cal_path.exists() and cal_path.read_text() != old, 120, "calibration", poll=0.01)
+        saved.append(time.perf_counter() - t0)
         cal = json.loads(cal_path.read_text())
         t_mm = " ".join(f"{v:.1f}" for v in 1000 * np.asarray(cal["cameras"]["cam1"]["T_cam_sonar"])[:3, 3])
-        wait_for(lambda: t_mm in page.locator("body").inner_text(), 60, "the pose in the page", poll=0.02) \
-            if page.get_by_role("tab", name="Solve", exact=True).click() is None else None
+        wait_for(lambda: t_mm in page.locator("body").inner_text(), 60, "the pose in the page", poll=0.02)
         times.append(time.perf_counter() - t0)
-        page.get_by_role("tab", name="Review", exact=True).click()
         wb.wait_idle(60)
+        if k == 0:  # the second Solve follows a correction, as in the review loop
+            cid = wb.state.session.captures[1].id
+            wb.state.set_status(cid, "rejected", "bench")
+            wb.wait_idle(60)
     page.close()
-    return {"Solve (s)": statistics.median(times), "Solve, each (s)": " / ".join(f"{t:.2f}" for t in times)}
+    return {"Solve (s)": statistics.median(times), "Solve, each: saved / shown (s)":
+            ", ".join(f"{a:.2f} / {b:.2f}" for a, b in zip(saved, times))}
 
 
 def bench_click(ctx, wb, n: int) -> dict:
