@@ -13,6 +13,7 @@ import threading
 
 from app.common import guarded, notify
 from calib_core.diagnose import MIN_CAPTURES, diagnose_session
+from calib_core.markup import escape_md
 
 MAX_BUTTONS = 8
 
@@ -97,7 +98,7 @@ class FlagsPanel:
         flags = list(st.flags)
         self.shown = flags[:MAX_BUTTONS]
         if getattr(st, "flags_note", ""):
-            self.header.content = st.flags_note
+            self.header.content = escape_md(st.flags_note)
         elif not flags:
             self.header.content = ("No flags: every capture with both detections fits the others."
                                    if st.session is not None else "")

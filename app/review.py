@@ -12,6 +12,7 @@ import numpy as np
 from app.common import client_tag, guarded, notify
 from calib_core.diagnose import wording
 from calib_core.errors import SessionError
+from calib_core.markup import escape_md
 from calib_core.pipeline import refit_sonar
 
 ALL = "all sensors"
@@ -40,14 +41,15 @@ def cell(c: dict | None) -> str:
         mark = DOTS[wording.verdict(c["score"], c["residual_px"], flagged)]
     parts = [c["status"]]
     if not c["found"] and c["status"] not in ("rejected", "missing"):
-        parts.append(f"(not found: {c.get('reason') or 'no sphere'})")
+        parts.append(f"(not found: {escape_md(c.get('reason') or 'no sphere')})")
     elif c["score"] is not None:
         parts.append(f"{c['score']:.2f}")
     if c["residual_px"] is not None:
         parts.append(f"· {c['residual_px']:.2f} px")
     if flagged:
         parts.append(f"⚠ {c['flag'].cause}")
-    return mark + NBSP + NBSP.join(str(p).replace(" ", NBSP) for p in parts)
+    tail = f" ({escape_md(c['reason'])})" if c.get("reason") and c["found"] else ""  # the detector's words
+    return mark + NBSP + NBSP.join(str(p).replace(" ", NBSP) for p in parts) + tail
 
 
 class ReviewPanel:
@@ -259,9 +261,9 @@ class ReviewPanel:
         if self.capture.value != sel:
             self.capture.value = sel
         cams = list(st.session.cameras)
-        lines = [f"| {'▶' if r['id'] == sel else ''} | {r['id']} | "
+        lines = [f"| {'▶' if r['id'] == sel else ''} | {escape_md(r['id'])} | "
                  + " | ".join(cell(r["sensors"].get(x)) for x in ["sonar", *cams]) + " |" for r in rows]
-        head = "| | capture | sonar | " + " | ".join(cams) + " |\n|---|---|---|" + "---|" * len(cams) + "\n"
+        head = "| | capture | sonar | " + " | ".join(escape_md(c) for c in cams) + " |\n|---|---|---|" + "---|" * len(cams) + "\n"
         self.table.content = ("**Captures (worst first)**\n\n" + head + "\n".join(lines)
                               + f"\n\n{DOTS['good']} good · {DOTS['doubtful']} doubtful · {DOTS['bad']} bad · "
                               + f"{dot('none')} rejected/none. {wording.THRESHOLDS_NOTE}. "
@@ -271,13 +273,16 @@ class ReviewPanel:
 
     def _details(self, cid: str) -> str:
         st = self.wb.state
-        out = [f"**{cid}**"]
+        out = [f"**{escape_md(cid)}**"]
         for sensor in st.sensors(cid):
             e = st.entry(cid, sensor) or {}
             c = e.get("center")
             where = "no centre" if c is None else "(" + ", ".join(f"{v:.4g}" for v in c) + ")"
-            why = f" ({e['reason']})" if e.get("reason") else ""
+            why = f" ({escape_md(e['reason'])})" if e.get("reason") else ""
             hist = e.get("history") or []
-            last = f"; last change {hist[-1]['time']} by {hist[-1]['client']}" if hist else ""
-            out.append(f"- {sensor}: {e.get('status', 'missing')} {where}{why}{last}")
+            last = f"; last change {escape_md(hist[-1].get('time'))} by {escape_md(hist[-1].get('client'))}" if hist else ""
+            out.append(f"- {escape_md(sensor)}: {e.get('status', 'missing')} {where}{why}{last}")
+        f = st.flag_for(cid)
+        if f is not None:
+            out.append(f"\n⚠ {escape_md(f.text)}")
         return "\n".join(out)

@@ -10,6 +10,7 @@ import cv2
 import numpy as np
 
 from app.common import guarded, notify
+from calib_core.markup import escape_md
 from calib_core.solve.summary import pose_rows, residual_rows, scale_line, table_i_rows
 
 BAR_RGB = [(255, 120, 0), (0, 150, 150), (150, 60, 220), (120, 120, 0)]
@@ -112,7 +113,7 @@ def _describe_full(cal: dict, flags=()) -> str:
         for o in cal["cameras"][cam].get("outliers") or []:
             f = by_capture.get(o["capture"])
             if f is not None:  # the diagnosis says which detection is wrong (calib_core.diagnose)
-                out.append(f"- ⚠ {f.text}")
+                out.append(f"- ⚠ {escape_md(f.text)}")
                 continue
             for why in o.get("reasons", []):
                 out.append(f"- ⚠ {cam} {o['capture']}: {why}")
