@@ -27,7 +27,7 @@ def capture_residuals(cal: dict) -> dict[str, list[dict]]:
     return out
 
 
-def residual_plot(cal: dict, width: int = 560, height: int = 320) -> np.ndarray | None:
+def residual_plot(cal: dict, width: int = 400, height: int = 270) -> np.ndarray | None:
     """Bar chart (RGB image) of each capture's reprojection residual (px), per camera;
     captures the solver left out or flagged are drawn hatched red."""
     rows = capture_residuals(cal)
@@ -41,16 +41,16 @@ def residual_plot(cal: dict, width: int = 560, height: int = 320) -> np.ndarray 
     vals = {cam: {r["capture"]: r for r in rs} for cam, rs in rows.items()}
     vmax = max([float(r.get("residual_norm_px") or 0) for rs in rows.values() for r in rs] + [1.0])
     img = np.full((height, width, 3), 255, np.uint8)
-    left, bottom, top = 56, 58, 34
+    left, bottom, top = 50, 58, 30
     ph = height - bottom - top
     gw = (width - left - 10) / len(caps)
     bw = gw * 0.8 / max(len(rows), 1)
-    font, fs = cv2.FONT_HERSHEY_SIMPLEX, 0.55  # ~12 px tall text at the panel's width
+    font, fs = cv2.FONT_HERSHEY_SIMPLEX, 0.5  # drawn near the panel's width: ~10 px tall text on screen
     for k in range(5):
         y = int(top + ph - ph * k / 4)
         cv2.line(img, (left, y), (width - 10, y), (225, 225, 225), 1)
         cv2.putText(img, f"{vmax * k / 4:.1f}", (4, y + 5), font, fs, (40, 40, 40), 1, cv2.LINE_AA)
-    cv2.putText(img, "residual px per capture (red: left out/flagged)", (4, 22), font, fs, (0, 0, 0), 1, cv2.LINE_AA)
+    cv2.putText(img, "residual px (red: left out / flagged)", (4, 20), font, fs, (0, 0, 0), 1, cv2.LINE_AA)
     for i, cid in enumerate(caps):
         x0 = left + i * gw + gw * 0.1
         for j, cam in enumerate(rows):
@@ -65,7 +65,7 @@ def residual_plot(cal: dict, width: int = 560, height: int = 320) -> np.ndarray 
         cv2.putText(img, str(cid)[:6], (int(x0), height - bottom + 20 + 20 * (i % 2)), font, fs, (0, 0, 0), 1,
                     cv2.LINE_AA)
     for j, cam in enumerate(rows):
-        x = width - 90 * (len(rows) - j)
+        x = width - 70 * (len(rows) - j)
         cv2.rectangle(img, (x, height - 16), (x + 12, height - 4), BAR_RGB[j % len(BAR_RGB)], -1)
         cv2.putText(img, cam, (x + 16, height - 4), font, fs, (0, 0, 0), 1, cv2.LINE_AA)
     return img

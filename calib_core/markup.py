@@ -17,7 +17,7 @@ def escape_html(text) -> str:
 
 def escape_md(text) -> str:
     """Text shown literally inside Markdown (which viser renders with raw HTML)."""
-    return _MD_SPECIAL.sub(r"\\\1", html.escape(str(text), quote=True))
+    return _MD_SPECIAL.sub(r"\\\1", html.escape(str(text), quote=False))
 
 
 def ros_frame_id(name) -> str:
