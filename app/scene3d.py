@@ -115,6 +115,18 @@ class Scene3D:
         self.wb.state.bus.publish("focus", client=client, cid=self.wb.state.selected, sensor=None, flag=None)
 
     def on_focus(self, client=None, cid=None, sensor=None, flag=None) -> None:
+        """Frame the capture for a sonar flag (or "Frame the selected capture"); mark where the
+        image says the sphere is (cyan) when a flag knows it."""
+        sc = self.wb.server.scene
+        where = getattr(flag, "predicted_sonar_m", None)
+        if where is not None:
+            sc.add_icosphere("/flag_predicted", radius=self.wb.state.session.sphere_radius_m, color=(0, 200, 230),
+                             wireframe=True, opacity=0.8, position=np.asarray(where, float))
+        else:
+            try:
+                sc.remove_by_name("/flag_predicted")
+            except Exception:  # nothing marked
+                pass
         if client is not None and (sensor in (None, "sonar") or flag is None):
             self.home_view(client)
 
