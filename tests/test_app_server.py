@@ -240,3 +240,30 @@ def test_review_table_colours_and_states_thresholds(wb):
     assert c.startswith(DOTS["bad"]) and "7.25\u00a0px" in c  # bad
     assert " " not in c.split("</span>", 1)[1]  # and never wrapped mid-value
     assert cell({"status": "rejected", "score": None, "residual_px": None, "found": False}).startswith(dot("none"))
+
+
+def test_a_flag_is_a_link_to_its_capture_and_fix(wb):
+    from types import SimpleNamespace
+
+    from calib_core.diagnose import Flag
+
+    st = wb.state
+    wb.diagnoser.wait_idle(30)
+    st.flags = [Flag("p03", "sonar", "sonar", "cam1", 40.0, None, [0.1, 0.2, 2.9], 0.3),
+                Flag("p02", "cam1", "image", "cam1", 55.0, [30.0, 20.0], None, 12.0)]
+    st.bus.publish("flags")
+    assert wb.wait_idle(30)
+    b0, b1 = wb.flags.buttons[:2]
+    assert b0.visible and b0.label == "⚠ p03 sonar: sonar detection wrong" and "drag the handle" in b0.hint
+    assert b1.label == "⚠ p02 cam1: image detection wrong" and not wb.flags.buttons[2].visible
+    first_two = wb.review.table.content.split("\n")[4:6]  # flagged captures come first, marked
+    assert {ln.split("|")[2].strip() for ln in first_two} == {"p02", "p03"} and all("⚠" in ln for ln in first_two)
+    wb.flags.go(SimpleNamespace(client=None, client_id=None), 0)
+    assert wb.wait_idle(30)
+    assert st.selected == "p03" and wb.review.sensor.value == "sonar" and wb.review.handle_on.value
+    assert "sonar detection is wrong" in wb.review.details.content
+    wb.flags.go(SimpleNamespace(client=None, client_id=None), 1)
+    assert wb.wait_idle(30)
+    assert st.selected == "p02" and wb.review.sensor.value == "cam1"
+    # uncalibrated: the board marks where the consensus pose puts the sphere
+    assert np.allclose(wb.images.reprojected_centre("p02", "cam1"), [30.0, 20.0])
