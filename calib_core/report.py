@@ -79,12 +79,13 @@ def _summary(session, calibration, models, cal_note) -> str:
 
 
 def _scale_text(calibration) -> str:
-    s = calibration.get("range_scale")
-    if isinstance(s, dict) and s.get("estimated") and isinstance(s.get("value"), (int, float)):
-        return (f"range scale {s['value']:.5f} ± {_fmt(s.get('sigma'), '.5f')} (1-sigma): cloud points are divided "
-                f"by it before T_cam_sonar is applied")
-    return f"range scale {range_scale(calibration):g} ({(s or {}).get('note') or 'not estimated'})" if isinstance(s, dict) \
-        else f"range scale {range_scale(calibration):g}"
+    """The range-scale sentence, as the CLI and the workbench word it (calib_core.solve.summary)."""
+    from calib_core.solve.summary import scale_line
+
+    try:
+        return scale_line(calibration)
+    except (KeyError, TypeError, ValueError):  # a calibration.json with the contract's keys only
+        return f"range scale {range_scale(calibration):g}"
 
 
 def _pose(calibration) -> str:
