@@ -84,7 +84,7 @@ def _scale_text(calibration) -> str:
 
     try:
         return scale_line(calibration)
-    except (KeyError, TypeError, ValueError):  # a calibration.json with the contract's keys only
+    except (KeyError, TypeError, ValueError, AttributeError):  # a calibration.json with odd or minimal keys
         return f"range scale {range_scale(calibration):g}"
 
 
