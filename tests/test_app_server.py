@@ -267,3 +267,18 @@ def test_a_flag_is_a_link_to_its_capture_and_fix(wb):
     assert st.selected == "p02" and wb.review.sensor.value == "cam1"
     # uncalibrated: the board marks where the consensus pose puts the sphere
     assert np.allclose(wb.images.reprojected_centre("p02", "cam1"), [30.0, 20.0])
+
+
+def test_default_view_faces_the_image_boards(wb):
+    import contextlib
+    from types import SimpleNamespace
+
+    from app.scene3d import camera_pose
+
+    calibrate_fake(wb, T_from_rotvec(np.array([0.4, -0.3, 0.2]), np.array([0.1, 0.0, 0.2])))
+    client = SimpleNamespace(camera=SimpleNamespace(), atomic=contextlib.nullcontext)
+    wb.scene3d.home_view(client)
+    view = np.asarray(client.camera.look_at, float) - np.asarray(client.camera.position, float)
+    axis = camera_pose(wb.state, "cam1")[:3, 2]  # the board's normal (the camera's optical axis)
+    angle = np.degrees(np.arccos(view @ axis / np.linalg.norm(view)))
+    assert angle < 50, angle  # seen from behind the camera, not edge-on (90 deg)
