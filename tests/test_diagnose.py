@@ -10,6 +10,7 @@ import yaml
 
 from calib_core.diagnose import MIN_CAPTURES, diagnose_session, wording
 from calib_core.diagnose.outline import find_outline
+from calib_core.detections import save_detections
 from calib_core.pipeline import SessionData, detect_session
 from calib_core.session import load_session
 
@@ -22,7 +23,9 @@ def review(tmp_path_factory):
                             pan_step_deg=1.0, sub_rays=7)
     data = SessionData(load_session(root))
     gt = yaml.safe_load((root / "ground_truth.yaml").read_text())
-    return data, detect_session(data, {}), gt
+    dets = detect_session(data, {})
+    save_detections(data.session, dets)
+    return data, dets, gt
 
 
 def _truth(gt):
@@ -88,3 +91,13 @@ def test_verdicts_follow_the_stated_thresholds():
     assert wording.verdict(0.3, None, False) == "bad"
     assert wording.verdict(None, 6.0, False) == "bad"
     assert "2 px" in wording.THRESHOLDS_NOTE and "0.7" in wording.THRESHOLDS_NOTE
+
+
+def test_cli_detect_prints_the_same_flags(review, capsys):
+    from conftest import run_cli
+
+    data, dets, gt = review
+    assert run_cli(["detect", str(data.session.root), "--missing-only"]) == 0
+    err = capsys.readouterr().err
+    texts = [f.text for f in diagnose_session(data, dets)]
+    assert len(texts) == 2 and all(f"flag: {t}" in err.replace("\n", " ") or t[:60] in err for t in texts)
