@@ -101,3 +101,16 @@ def test_cli_detect_prints_the_same_flags(review, capsys):
     err = capsys.readouterr().err
     texts = [f.text for f in diagnose_session(data, dets)]
     assert len(texts) == 2 and all(f"flag: {t}" in err.replace("\n", " ") or t[:60] in err for t in texts)
+
+
+def test_a_wrong_image_centre_with_the_sphere_in_plain_view_is_found_by_the_detector(review):
+    data, dets, gt = review
+    moved, hidden = _truth(gt)
+    cid = [c for c in gt["captures"] if c not in moved + hidden][1]
+    bad = copy.deepcopy(dets)
+    u, v = bad[cid]["cam1"]["center"]
+    bad[cid]["cam1"]["center"] = [u + 90.0 if u < 240 else u - 90.0, v]
+    f = {f.capture: f for f in diagnose_session(data, bad)}[cid]
+    assert (f.cause, f.sensor) == ("image", "cam1")
+    assert f.suggestion.get("method") != "outline"  # the detector itself found the sphere there
+    assert np.linalg.norm(np.subtract(f.suggestion["center"], [u, v])) < 1.0

@@ -3,7 +3,9 @@
 For a capture outside a camera's consensus (:mod:`calib_core.diagnose.consistency`):
 
 - image wrong: the image detector, started at the pixel where the consensus pose projects the
-  sonar centre, finds a round outline there, and that outline is not the detected one;
+  sonar centre, finds the sphere there (or, when it is partly hidden and the detector gives up,
+  a good part of a round outline of the expected size is there: :mod:`.outline`), and it is
+  not the detected one;
 - sonar wrong: the sonar detector, started where the image detection puts the sphere (its
   ray at the range its apparent size gives, mapped into the sonar frame), finds a sphere
   there, and it is not the detected one;
@@ -65,15 +67,27 @@ def _image_explains(data, cid, cam, T, son, img) -> Flag | None:
     if z <= 0 or not (0 <= uv[0] < model.width_px and 0 <= uv[1] < model.height_px):
         return None
     r_px = model.fx * data.session.sphere_radius_m / z
-    o = find_outline(load_image(data.session.capture(cid).image_paths[cam]), uv, r_px, search=0.25)
-    if not o.found:
-        return None
-    gap = float(np.linalg.norm(o.center_uv_px - np.asarray(img["center"], float)))
+    found = _detector_at(data, cid, cam, uv, r_px)  # the image detector, started at the predicted place
+    if found is None:  # a partly hidden sphere defeats the detector: look for part of its outline
+        o = find_outline(load_image(data.session.capture(cid).image_paths[cam]), uv, r_px, search=0.25)
+        if not o.found:
+            return None
+        found = {"center": [float(v) for v in o.center_uv_px], "radius_px": float(o.radius_px),
+                 "outline_support": round(o.support, 3), "method": "outline"}
+    gap = float(np.linalg.norm(np.asarray(found["center"], float) - np.asarray(img["center"], float)))
     if gap <= 1.5 * r_px:
-        return None  # the outline there is (part of) the detected sphere: the image is not what is wrong
-    hint = {"center": [float(v) for v in o.center_uv_px], "radius_px": float(o.radius_px),
-            "outline_support": round(o.support, 3)}
-    return Flag(cid, cam, "image", cam, 0.0, [float(v) for v in uv], None, gap, hint)
+        return None  # what is there is (part of) the detected sphere: the image is not what is wrong
+    return Flag(cid, cam, "image", cam, 0.0, [float(v) for v in uv], None, gap, found)
+
+
+def _detector_at(data, cid, cam, uv, r_px) -> dict | None:
+    """The image detector's entry when it finds a sphere within half a radius of ``uv``, else None."""
+    from calib_core.pipeline import detect_image_entry
+
+    e = detect_image_entry(data, cid, cam, hint_uv_px=uv, hint_radius_px=r_px)
+    if e.get("center") is None or np.linalg.norm(np.asarray(e["center"], float) - uv) > 0.5 * r_px:
+        return None
+    return e
 
 
 def _sonar_explains(data, cid, cam, T, son, img) -> Flag | None:
