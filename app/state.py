@@ -170,6 +170,8 @@ class WorkbenchState:
             self.data.adopt_beam_width(dets)
             self.cal_version += 1
             self.selected = session.captures[0].id
+            self.flags, self.flags_note = [], ""  # the diagnosis of the new session follows
+            self._centres.clear()
             self.warnings = warnings
             self._images.clear()
             self._clouds.clear()
