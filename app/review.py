@@ -1,8 +1,11 @@
-"""Review panel: the capture list (worst first), navigation, accept/reject/undo, sonar corrections.
+"""Review panel: the capture list (flagged and worst first), navigation, accept/reject,
+undo/redo, sonar corrections.
 
-Residuals are the distance in pixels between the image detection and the sonar centre
-reprojected through the current calibration (calib_core.fusion.project_cloud), the same
-numbers the overlays show.
+Residuals are :meth:`app.state.WorkbenchState.residual_px`: the distance in pixels between the
+image detection and the sonar centre projected through the current calibration, computed as
+the solver computes its per-capture residual, so every panel shows the same number. Each cell
+is coloured good / doubtful / bad by :func:`calib_core.diagnose.wording.verdict` (thresholds
+stated under the table).
 """
 
 from __future__ import annotations
