@@ -322,7 +322,8 @@ class ImagePanels:
             return
         cam = flag.camera if flag is not None and sensor != "sonar" else None
         if cam is not None:
-            self.refresh()  # the selected capture's image (with the predicted position) first
+            self.wb.refresher.mark("overlay")  # the selected capture's image (predicted position marked) first,
+            self.wb.refresher.wait_idle(10)  # drawn by the refresh thread (the one that draws boards)
             self.view_through(client, cam)
         else:
             self.viewing.pop(client.client_id, None)
