@@ -103,7 +103,8 @@ class FlagsPanel:
             self.header.content = ("No flags: every capture with both detections fits the others."
                                    if st.session is not None else "")
         else:
-            self.header.content = f"**{len(flags)} flagged** (before any Solve; the consistency check of the solver)"
+            self.header.content = (f"**{len(flags)} flagged** by the solver's consistency check, re-run after every "
+                                   "detection and change (no Solve needed). Hover a flag for its fix; click it to go there.")
         for k, b in enumerate(self.buttons):
             if k < len(self.shown):
                 f = self.shown[k]
