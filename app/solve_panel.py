@@ -72,8 +72,8 @@ def residual_plot(cal: dict, width: int = 400, height: int = 270) -> np.ndarray 
 
 
 def md_table(cols, rows) -> str:
-    """A markdown table (cells with '|' escaped)."""
-    esc = lambda v: str(v).replace("|", "\\|")  # noqa: E731
+    """A markdown table (every cell escaped)."""
+    esc = escape_md  # names and texts from files: no markup reaches the page
     out = ["| " + " | ".join(esc(c) for c in cols) + " |", "|" + "---|" * len(cols)]
     out += ["| " + " | ".join(esc(c) for c in r) + " |" for r in rows]
     return "\n".join(out)
@@ -96,7 +96,7 @@ def _describe_minimal(cal: dict) -> str:
         T = np.asarray(c.get("T_cam_sonar"), float)
         t_mm = " ".join(f"{v:.1f}" for v in 1000 * T[:3, 3]) if T.shape == (4, 4) else "?"
         rms = c.get("rms_reprojection_px")
-        out.append(f"- {cam}: t (mm) {t_mm}" + (f"; RMS {rms:.2f} px" if isinstance(rms, (int, float)) else ""))
+        out.append(f"- {escape_md(cam)}: t (mm) {t_mm}" + (f"; RMS {rms:.2f} px" if isinstance(rms, (int, float)) else ""))
     return "\n".join(out)
 
 
@@ -104,11 +104,11 @@ def _describe_full(cal: dict, flags=()) -> str:
     cols, rows = pose_rows(cal)
     out = ["**Pose T_cam_sonar** (sonar origin in the camera frame)", "",
            md_table(["", *[r[0] for r in rows]], [[c, *[r[i] for r in rows]] for i, c in enumerate(cols) if i > 0]),
-           "", f"**Range scale**: {scale_line(cal)}"]
+           "", f"**Range scale**: {escape_md(scale_line(cal))}"]
     for cam in cal["cameras"]:
         cols, rows = residual_rows(cal, cam)
         keep = [cols.index(c) for c in ("capture", "used", "residual px", "Mahalanobis", "flags")]
-        out += ["", f"**{cam}: residuals per capture**", "", md_table([cols[i] for i in keep], [[r[i] for i in keep] for r in rows])]
+        out += ["", f"**{escape_md(cam)}: residuals per capture**", "", md_table([cols[i] for i in keep], [[r[i] for i in keep] for r in rows])]
         by_capture = {f.capture: f for f in flags}
         for o in cal["cameras"][cam].get("outliers") or []:
             f = by_capture.get(o["capture"])
@@ -116,12 +116,12 @@ def _describe_full(cal: dict, flags=()) -> str:
                 out.append(f"- ⚠ {escape_md(f.text)}")
                 continue
             for why in o.get("reasons", []):
-                out.append(f"- ⚠ {cam} {o['capture']}: {why}")
+                out.append("- ⚠ " + escape_md(f"{cam} {o['capture']}: {why}"))
     ti = table_i_rows(cal)
     if ti:
         out += ["", "**Table I** (independent solves, mm)", "", md_table(*ti)]
     for w in cal.get("warnings") or []:
-        out.append(f"- ⚠ {w}")
+        out.append(f"- ⚠ {escape_md(w)}")
     return "\n".join(out)
 
 
