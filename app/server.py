@@ -91,6 +91,9 @@ class Workbench:
         self.solve = SolvePanel(self)
         self.fused = FusedPanel(self)
         self.session_panel = SessionPanel(self)
+        from app.motion_panel import MotionPanel  # the target-motion track of an imported session
+
+        self.motion_panel = MotionPanel(self)
 
         self.refresher.on("session", self._on_session)
         self.refresher.on("after-session", self._after_session)
