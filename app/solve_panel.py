@@ -11,7 +11,7 @@ import numpy as np
 
 from app.common import guarded, notify
 from calib_core.markup import escape_md
-from calib_core.solve.summary import pose_rows, residual_rows, scale_line, table_i_rows
+from calib_core.solve.summary import consistency_lines, pose_rows, residual_rows, scale_line, table_i_rows
 
 BAR_RGB = [(255, 120, 0), (0, 150, 150), (150, 60, 220), (120, 120, 0)]
 
@@ -105,6 +105,8 @@ def _describe_full(cal: dict, flags=()) -> str:
     out = ["**Pose T_cam_sonar** (sonar origin in the camera frame)", "",
            md_table(["", *[r[0] for r in rows]], [[c, *[r[i] for r in rows]] for i, c in enumerate(cols) if i > 0]),
            "", f"**Range scale**: {escape_md(scale_line(cal))}"]
+    out += ["", *[f"**Consistency**: {escape_md(line)}" for line in consistency_lines(cal)
+                  if line not in (cal.get("warnings") or [])]]
     for cam in cal["cameras"]:
         cols, rows = residual_rows(cal, cam)
         keep = [cols.index(c) for c in ("capture", "used", "residual px", "Mahalanobis", "flags")]
@@ -131,8 +133,9 @@ class SolvePanel:
         gui = wb.server.gui
         self.button = wb.solve_button
         with wb.tab_solve:
-            self.scale = gui.add_checkbox("Estimate range scale", False,
-                                          hint="Sound-speed error (like 'sonarcal calibrate --scale'); needs two cameras and a stereo transform")
+            self.scale = gui.add_checkbox("Force range-scale estimate", False,
+                                          hint="Off: the sound-speed (range) scale is estimated where observable when a test finds "
+                                               "a scale error, as 'sonarcal calibrate' does; on: always (like --scale)")
             self.robust = gui.add_dropdown("Robust loss", ("none", "huber", "cauchy"), initial_value="none")
             self.status = gui.add_markdown("")
             self.summary = gui.add_markdown(describe(None))
@@ -164,10 +167,10 @@ class SolvePanel:
         self.status.content = "Solving… (the workbench stays usable)"
 
     def options(self) -> dict:
-        """The options dict 'sonarcal calibrate' builds from its flags, on the detections as reviewed
-        (the job detects missing entries first; automatic ones shown on screen are used as they are)."""
-        return {"estimate_scale": bool(self.scale.value), "robust": None if self.robust.value == "none" else self.robust.value,
-                "detect": False, "leave_one_out": True}
+        """The options dict 'sonarcal calibrate' builds from its flags (same defaults: automatic entries
+        whose fingerprint still matches are reused as shown; the job first detects missing entries)."""
+        return {"estimate_scale": True if self.scale.value else None, "robust": None if self.robust.value == "none" else self.robust.value,
+                "detect": True, "leave_one_out": True}
 
     def job_finished(self, name: str) -> None:
         if name == "solve":

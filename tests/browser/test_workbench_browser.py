@@ -232,7 +232,7 @@ def test_operator_session_in_chromium(workbench, browser, session_root):
 
     # the CLI's function on the same detections gives the same numbers
     s = load_session(session_root)
-    again = calibrate_session(s, load_detections(s), {"detect": False})  # the detections as reviewed
+    again = calibrate_session(s, load_detections(s))
     T_cli = np.asarray(again["cameras"]["cam1"]["T_cam_sonar"])
     assert np.max(np.abs(T_cli - np.asarray(c1["T_cam_sonar"]))) < 1e-9
     assert abs(again["cameras"]["cam1"]["rms_reprojection_px"] - c1["rms_reprojection_px"]) < 1e-9
