@@ -53,6 +53,7 @@ def test_a_wrong_sonar_centre_is_blamed_on_the_sonar(review):
     moved, hidden = _truth(gt)
     cid = next(c for c in gt["captures"] if c not in moved + hidden)
     bad = copy.deepcopy(dets)
+    bad[moved[0]]["sonar"]["status"] = "rejected"  # two bad captures of seven, not three of eight
     c = bad[cid]["sonar"]["center"]
     bad[cid]["sonar"]["center"] = [c[0] + 0.5, c[1] - 0.3, c[2]]
     f = {f.capture: f for f in diagnose_session(data, bad)}[cid]
