@@ -3,7 +3,8 @@
 Axes: the field is described in a frame (forward, left, up) obtained from the sonar frame by a
 signed axis permutation ``R_field_sonar``; for the synthetic sonar (x forward, y left, z up) it
 is the identity. From clouds the forward axis is the sonar axis nearest the points' mean
-direction, and the angular and range limits are the 1st-99th percentiles of the points.
+direction (up is +z, or -y when z is forward, as in OpenCV-like frames), and the angular and
+range limits are the 1st-99th percentiles of the points.
 """
 
 from __future__ import annotations
@@ -50,8 +51,7 @@ def _axis_frame(mean_dir: np.ndarray) -> np.ndarray:
     s = 1.0 if mean_dir[k] >= 0 else -1.0
     fwd = np.zeros(3)
     fwd[k] = s
-    up = np.zeros(3)
-    up[2 if k != 2 else 0] = 1.0
+    up = np.array([0.0, -1.0, 0.0]) if k == 2 else np.array([0.0, 0.0, 1.0])  # z forward: OpenCV-like, y down
     left = np.cross(up, fwd)
     return np.stack([fwd, left, up])
 
