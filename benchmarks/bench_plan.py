@@ -145,7 +145,7 @@ def planner_states(w: World, est: dict, inflate: bool = True) -> list:
 def guided_next(w: World, caps: list, est: dict, rng, criterion: str, jitter: bool = True) -> np.ndarray:
     cams_est = {n: (w.cams[n][0], est[n][0]) for n in est}
     taken = np.array([c["X"] for c in caps])
-    cands = candidates(cams_est, w.field, RADIUS_M, LIMITS, taken)
+    cands = candidates(cams_est, w.field, RADIUS_M, LIMITS, taken, pose_cov={n: est[n][1] for n in est})
     noise = fit_noise(np.repeat(w.noise.cov_uv_px2[None], len(caps), 0), taken, np.array([c["cX"] for c in caps]))
     plan = plan_next(planner_states(w, est), cands, noise, RADIUS_M, TARGET, 1, criterion, LIMITS.min_separation_m)
     if not plan.suggestions:

@@ -116,7 +116,7 @@ def plan_session(session, detections: dict, calibration: dict | None = None, tar
         limits = replace(limits, working_range_m=tuple(float(v) for v in working_range_m))
     field = field or field_from_session(session, load_points)
     cams = {s.name: (s.cam, s.T_cam_sonar) for s in states}
-    cands = candidates(cams, field, session.sphere_radius_m, limits, taken)
+    cands = candidates(cams, field, session.sphere_radius_m, limits, taken, pose_cov={s.name: s.cov for s in states})
     plan = plan_next(states, cands, noise, session.sphere_radius_m, target, count, criterion, limits.min_separation_m)
     return SessionPlan(plan, field, limits, [s.name for s in states], taken,
                        {c: corrs[c].uv_px for c in corrs}, skipped)
