@@ -36,6 +36,7 @@ class Workbench:
                  allowed_roots=None, uploads_dir=None, verbose: bool = False):
         from app.fused import FusedPanel
         from app.images import ImagePanels
+        from app.plan_panel import PlanPanel
         from app.review import ReviewPanel
         from app.scene3d import Scene3D
         from app.session_panel import SessionPanel
@@ -61,6 +62,7 @@ class Workbench:
         self.tab_view = tabs.add_tab("View")
         self.tab_fused = tabs.add_tab("Fused")
         self.tab_session = tabs.add_tab("Session")
+        self.tab_plan = tabs.add_tab("Plan")
 
         self.scene3d = Scene3D(self)
         self.images = ImagePanels(self)
@@ -68,6 +70,7 @@ class Workbench:
         self.solve = SolvePanel(self)
         self.fused = FusedPanel(self)
         self.session_panel = SessionPanel(self)
+        self.plan = PlanPanel(self, self.tab_plan)
 
         self.refresher.on("session", self._on_session)
         self.refresher.on("after-session", self._after_session)

@@ -119,3 +119,27 @@ def coverage(sp, cameras: dict) -> dict:
     out["depth"] = depth_spread(r, [float(np.linalg.norm(s.X_sonar_m)) for s in sugg], sp.limits.working_range_m)
     out["fan"] = fan_spread(sp.field, sp.taken_sonar_m, [s.X_sonar_m for s in sugg])
     return out
+
+
+def suggestions_on_image(image_rgb: np.ndarray, cam_name: str, plan, max_width: int = 640) -> np.ndarray:
+    """A copy of a camera image (downscaled to ``max_width``) with each suggestion drawn as a
+    numbered ring of the sphere's outline radius and its predicted worst-axis 1-sigma."""
+    img = np.ascontiguousarray(image_rgb[..., :3] if image_rgb.ndim == 3 else np.repeat(image_rgb[..., None], 3, 2))
+    s = min(1.0, max_width / img.shape[1])
+    if s < 1.0:
+        img = cv2.resize(img, (max_width, max(1, int(round(img.shape[0] * s)))), interpolation=cv2.INTER_AREA)
+    else:
+        img = img.copy()
+    for k, sug in enumerate(plan.suggestions, 1):
+        if cam_name not in sug.uv_px:
+            continue
+        u, v = sug.uv_px[cam_name] * s
+        r = max(int(sug.radius_px[cam_name] * s), 6)
+        cv2.circle(img, (int(u), int(v)), r, (255, 255, 255), 4, cv2.LINE_AA)
+        cv2.circle(img, (int(u), int(v)), r, SUGGESTED, 2, cv2.LINE_AA)
+        rot, tr = sug.sigma_after[cam_name]
+        text = f"{k}: {rot.max():.2f} deg / {tr.max():.1f} mm"
+        org = (int(min(max(u - r, 2), img.shape[1] - 150)), int(min(max(v - r - 6, 14), img.shape[0] - 4)))
+        cv2.putText(img, text, org, FONT, 0.45, (255, 255, 255), 3, cv2.LINE_AA)
+        cv2.putText(img, text, org, FONT, 0.45, SUGGESTED, 1, cv2.LINE_AA)
+    return img
