@@ -14,12 +14,14 @@ import numpy as np
 
 from calib_core.errors import SessionError
 from calib_core.plan.coverage import coverage, suggestions_on_image
-from calib_core.plan.report import criterion_text, plan_lines, status_line, suggestion_rows
+from calib_core.plan.report import plan_lines, status_line, suggestion_rows
+from calib_core.plan.select import DEFAULT_CRITERION
 from calib_core.plan.session_plan import field_from_session, plan_session
 from calib_core.plan.target import Target
 
 GHOST_RGB = (230, 90, 0)
 CRITERIA = {"worst axis vs target": "worst", "D-optimal": "d"}
+DEFAULT_LABEL = next(k for k, v in CRITERIA.items() if v == DEFAULT_CRITERION)
 
 
 def markdown_table(cols: list[str], rows: list[list[str]]) -> str:
@@ -37,7 +39,7 @@ class PlanPanel:
                              "'enough' when every camera meets the target.")
             self.rot = gui.add_number("Target rotation 1-sigma (deg)", 0.1, min=0.001, max=20.0, step=0.01)
             self.trans = gui.add_number("Target translation 1-sigma (mm)", 5.0, min=0.1, max=1000.0, step=0.5)
-            self.criterion = gui.add_dropdown("Criterion", tuple(CRITERIA), initial_value="worst axis vs target")
+            self.criterion = gui.add_dropdown("Criterion", tuple(CRITERIA), initial_value=DEFAULT_LABEL)
             self.count = gui.add_slider("Suggestions", min=1, max=5, step=1, initial_value=3)
             self.show = gui.add_checkbox("Show suggestions in the 3D view", True)
             self.status = gui.add_markdown("")
@@ -47,8 +49,9 @@ class PlanPanel:
             self.cov_folder = gui.add_folder("Coverage")
         for h in (self.rot, self.trans, self.criterion, self.count, self.show):
             h.on_update(lambda _e: wb.refresher.mark("plan"))
-        for kind in ("detections", "calibration", "selection", "plan"):
+        for kind in ("detections", "calibration", "plan"):
             wb.refresher.on(kind, self.refresh)
+        wb.refresher.on("selection", self.redraw_images)  # the shown image follows the selected capture
         wb.refresher.on("session", self.rebuild)
         self.images: dict = {}
         self.nodes: list = []
@@ -100,7 +103,7 @@ class PlanPanel:
         self.table.content = markdown_table(cols, rows) if rows else ""
         self.details.content = "  \n".join(html.escape(x) for x in plan_lines(sp)[1:])
         self._ghosts(sp, session.sphere_radius_m)
-        self._pictures(sp, st)
+        self.redraw_images()
 
     def _ghosts(self, sp, radius_m: float) -> None:
         self._clear_ghosts()
@@ -114,7 +117,11 @@ class PlanPanel:
             self.nodes.append(sc.add_label(f"/plan/next{k}_label", f"next {k}: {worst[0]:.2f} deg / {worst[1]:.1f} mm",
                                            position=tuple(s.X_sonar_m + [0, 0, 1.5 * radius_m])))
 
-    def _pictures(self, sp, st) -> None:
+    def redraw_images(self) -> None:
+        """Rings on the selected capture's image per camera, and the coverage pictures, of the last plan."""
+        sp, st = self.last, self.wb.state
+        if sp is None or st.session is None:
+            return
         models = {c: st.camera(c) for c in sp.cameras}
         sel = st.selected
         for c in sp.cameras:

@@ -227,7 +227,7 @@ def main() -> int:
     ap = argparse.ArgumentParser()
     ap.add_argument("--rigs", type=int, default=60)
     ap.add_argument("--trials", type=int, default=40)
-    ap.add_argument("--criterion", default="d")
+    ap.add_argument("--criterion", default="worst", choices=["worst", "d"])
     ap.add_argument("--seed0", type=int, default=0)
     ap.add_argument("--before", default="6,15", help="random captures before the predicted one (comma list)")
     ap.add_argument("--no-counts", action="store_true", help="prediction part only")

@@ -12,8 +12,9 @@ def add_parser(sub) -> None:
     p.add_argument("--count", type=int, default=3, help="number of suggestions (default 3)")
     p.add_argument("--target", default="0.1deg,5mm",
                    help="target 1-sigma per axis, rotation and translation (default 0.1deg,5mm)")
-    p.add_argument("--criterion", choices=["d", "worst"], default="d",
-                   help="d: D-optimal (log det of the pose information); worst: worst axis relative to the target")
+    p.add_argument("--criterion", choices=["worst", "d"], default="worst",
+                   help="worst (default): smallest worst-axis 1-sigma relative to the target; "
+                        "d: D-optimal (log det of the pose information)")
     p.add_argument("--range", dest="working_range", default=None,
                    help="working range of the sphere from the sonar, metres, e.g. 1,4 "
                         "(default: the captures' ranges widened by 25 %%)")

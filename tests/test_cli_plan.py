@@ -59,7 +59,7 @@ def test_cli_prints_suggestions_in_the_sonar_frame_and_pixels(tmp_path, capsys):
     before = tree_hash(sess)
     assert run_cli(["plan", str(sess), "--count", "2", "--target", "0.01deg,0.1mm"]) == 0
     out = capsys.readouterr().out
-    assert "not yet" in out and "sonar x, y, z (m)" in out and "cam1 u, v (px)" in out and "cam2 u, v (px)" in out
+    assert "not yet" in out and "worst axis" in out and "sonar x, y, z (m)" in out and "cam1 u, v (px)" in out and "cam2 u, v (px)" in out
     assert out.count("(r ") >= 2
     assert tree_hash(sess) == before  # plan writes nothing
     assert run_cli(["plan", str(sess), "--target", "1000deg,1000mm", "--criterion", "d", "--range", "1,3"]) == 0

@@ -133,10 +133,12 @@ def test_a_capture_off_the_plane_is_preferred_when_captures_are_coplanar():
         assert ratios[0] < plan.ratio_now and all(b <= a + 1e-12 for a, b in zip(ratios, ratios[1:]))
         pts = np.array([s.X_sonar_m for s in plan.suggestions])
         assert np.linalg.norm(pts[0] - pts[1]) >= 0.25 and np.linalg.norm(pts[1] - pts[2]) >= 0.25
-        # the best single candidate under the D criterion has the largest log-det gain of all
-    gains = logdet_gain(st.cov, *capture_terms(cam, T, c.X_sonar_m, noise.cov_uv_px2, noise.sonar_cov(c.X_sonar_m)))
+    # the first pick is the best single candidate: largest log-det gain (d), smallest worst-axis ratio (worst)
+    D, S = capture_terms(cam, T, c.X_sonar_m, noise.cov_uv_px2, noise.sonar_cov(c.X_sonar_m))
     best = plan_next([st], c, noise, 0.11, Target(), 1, "d").suggestions[0]
-    assert best.gain == pytest.approx(gains.max())
+    assert best.gain == pytest.approx(logdet_gain(st.cov, D, S).max())
+    best = plan_next([st], c, noise, 0.11, Target(0.05, 2.0), 1, "worst").suggestions[0]
+    assert best.ratio_after == pytest.approx(Target(0.05, 2.0).ratio(updated_cov(st.cov, D, S)).min())
 
 
 def test_plan_with_no_candidate_says_so_and_criterion_is_checked():

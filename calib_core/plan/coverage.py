@@ -123,13 +123,15 @@ def coverage(sp, cameras: dict) -> dict:
 
 def suggestions_on_image(image_rgb: np.ndarray, cam_name: str, plan, max_width: int = 640) -> np.ndarray:
     """A copy of a camera image (downscaled to ``max_width``) with each suggestion drawn as a
-    numbered ring of the sphere's outline radius and its predicted worst-axis 1-sigma."""
+    numbered ring of the sphere's outline radius, and a legend of the predicted worst-axis 1-sigma
+    of this camera after each (cumulative)."""
     img = np.ascontiguousarray(image_rgb[..., :3] if image_rgb.ndim == 3 else np.repeat(image_rgb[..., None], 3, 2))
     s = min(1.0, max_width / img.shape[1])
     if s < 1.0:
         img = cv2.resize(img, (max_width, max(1, int(round(img.shape[0] * s)))), interpolation=cv2.INTER_AREA)
     else:
         img = img.copy()
+    legend = []
     for k, sug in enumerate(plan.suggestions, 1):
         if cam_name not in sug.uv_px:
             continue
@@ -137,9 +139,18 @@ def suggestions_on_image(image_rgb: np.ndarray, cam_name: str, plan, max_width: 
         r = max(int(sug.radius_px[cam_name] * s), 6)
         cv2.circle(img, (int(u), int(v)), r, (255, 255, 255), 4, cv2.LINE_AA)
         cv2.circle(img, (int(u), int(v)), r, SUGGESTED, 2, cv2.LINE_AA)
+        _tag(img, str(k), (int(u) + int(0.7 * r), int(v) - int(0.7 * r)))
         rot, tr = sug.sigma_after[cam_name]
-        text = f"{k}: {rot.max():.2f} deg / {tr.max():.1f} mm"
-        org = (int(min(max(u - r, 2), img.shape[1] - 150)), int(min(max(v - r - 6, 14), img.shape[0] - 4)))
-        cv2.putText(img, text, org, FONT, 0.45, (255, 255, 255), 3, cv2.LINE_AA)
-        cv2.putText(img, text, org, FONT, 0.45, SUGGESTED, 1, cv2.LINE_AA)
+        legend.append(f"{k}: then {rot.max():.3f} deg / {tr.max():.1f} mm")
+    for i, text in enumerate(reversed(legend)):
+        _tag(img, text, (6, img.shape[0] - 8 - 20 * i))
     return img
+
+
+def _tag(img, text: str, org) -> None:
+    """White text on a dark box at ``org`` (bottom-left), kept inside the image."""
+    (w, h), _ = cv2.getTextSize(text, FONT, 0.45, 1)
+    x = int(min(max(org[0], 2), img.shape[1] - w - 4))
+    y = int(min(max(org[1], h + 4), img.shape[0] - 4))
+    cv2.rectangle(img, (x - 3, y - h - 4), (x + w + 3, y + 4), (40, 40, 40), -1)
+    cv2.putText(img, text, (x, y), FONT, 0.45, (255, 255, 255), 1, cv2.LINE_AA)

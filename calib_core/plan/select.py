@@ -1,10 +1,11 @@
 """Choose the next sphere positions: greedy sequential optimal design over the candidates.
 
 Criteria (both in the solver's covariance model, per camera, cameras solved independently):
-- ``"d"`` (D-optimal, the default): maximise the sum over cameras of the gain in log det of the
-  6x6 pose information (units do not matter: rotation and translation are weighed by the data).
-- ``"worst"``: minimise the worst axis 1-sigma over all cameras relative to the target
-  (rotation sigma / target deg and translation sigma / target mm), ties broken by D-gain.
+- ``"worst"`` (the default): minimise the worst axis 1-sigma over all cameras relative to the
+  target (max of rotation sigma / target deg and translation sigma / target mm), ties broken by
+  the D-gain. It aims straight at the stop rule and needs fewer captures (bench_plan.py).
+- ``"d"`` (D-optimal): maximise the sum over cameras of the gain in log det of the 6x6 pose
+  information (units do not matter: rotation and translation are weighed by the data).
 
 The first suggestion is the best single next capture; the k-th is the best given the captures
 taken *and* suggestions 1..k-1 (so "after" sigmas are cumulative), at least ``min_separation_m``
@@ -24,6 +25,7 @@ from calib_core.plan.noise import NoiseModel
 from calib_core.plan.target import Target
 
 CRITERIA = ("d", "worst")
+DEFAULT_CRITERION = "worst"  # fewer captures to the target in bench_plan.py (14.1 vs 16.2 on 60 rigs)
 
 
 @dataclass
@@ -102,7 +104,7 @@ def _describe(states: list, covs: list, X: np.ndarray, vis_row: np.ndarray, radi
 
 
 def plan_next(states: list[CameraState], cands: Candidates, noise: NoiseModel, radius_m: float,
-              target: Target = Target(), count: int = 3, criterion: str = "d",
+              target: Target = Target(), count: int = 3, criterion: str = DEFAULT_CRITERION,
               min_separation_m: float = 0.25) -> Plan:
     """Up to ``count`` suggestions (see the module doc) from the candidates."""
     if criterion not in CRITERIA:

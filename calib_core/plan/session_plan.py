@@ -19,7 +19,7 @@ from calib_core.plan.candidates import Limits, candidates
 from calib_core.plan.field import SonarField, field_from_points
 from calib_core.plan.information import capture_terms, information, safe_inverse
 from calib_core.plan.noise import fit_noise
-from calib_core.plan.select import CameraState, Plan, plan_next
+from calib_core.plan.select import DEFAULT_CRITERION, CameraState, Plan, plan_next
 from calib_core.plan.target import Target
 
 
@@ -88,7 +88,7 @@ def default_limits(taken_sonar_m: np.ndarray, radius_m: float) -> Limits:
 
 
 def plan_session(session, detections: dict, calibration: dict | None = None, target: Target = Target(),
-                 limits: Limits | None = None, count: int = 3, criterion: str = "d",
+                 limits: Limits | None = None, count: int = 3, criterion: str = DEFAULT_CRITERION,
                  field: SonarField | None = None, load_points=None, working_range_m=None) -> SessionPlan:
     """Suggestions for the next ``count`` captures (see the module doc); ``working_range_m``
     (min, max) overrides the default working range.
