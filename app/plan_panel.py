@@ -85,9 +85,9 @@ class PlanPanel:
         if st.session is None:
             return
         session, dets, cal = st.snapshot()
-        if self.field is None:
-            self.field = field_from_session(session, lambda cid: st.cloud(cid).points_m)
         try:
+            if self.field is None:
+                self.field = field_from_session(session, lambda cid: st.cloud(cid).points_m)
             sp = plan_session(session, dets, cal, self.target(), None, int(self.count.value),
                               CRITERIA[self.criterion.value], field=self.field)
         except SessionError as e:
