@@ -12,6 +12,7 @@ import html
 
 import numpy as np
 
+from app.common import notify
 from calib_core.errors import SessionError
 from calib_core.plan.coverage import coverage, suggestions_on_image
 from calib_core.plan.report import plan_lines, status_line, suggestion_rows
@@ -96,6 +97,8 @@ class PlanPanel:
             self._clear_ghosts()
             self.last = None
             return
+        if sp.plan.met and not (self.last is not None and self.last.plan.met):
+            notify(self.wb.server, None, "Enough captures", status_line(sp.plan), color="green", seconds=12.0)
         self.last = sp
         word = "**Enough**" if sp.plan.met else "**Not yet**"
         self.status.content = f"{word}. {html.escape(status_line(sp.plan))}"

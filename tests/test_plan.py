@@ -169,3 +169,22 @@ def test_target_met_per_axis():
     C[5, 5] = 0.0051**2
     assert not Target(0.1, 5).met(C)
     assert Target(0.1, 5).ratio(C) == pytest.approx(5.1 / 5)
+
+
+def test_pose_uncertainty_widens_the_image_margin():
+    from calib_core.plan.candidates import pose_margin_px
+
+    cam, T, X, noise, st = _coplanar_state()
+    pts = SonarField().to_sonar(np.zeros(5), np.zeros(5), np.linspace(1.5, 3.5, 5))
+    assert np.allclose(pose_margin_px(cam, T, pts, np.zeros((6, 6))), 0)
+    small = pose_margin_px(cam, T, pts, st.cov)
+    big = pose_margin_px(cam, T, pts, 100 * st.cov)
+    assert np.all(small > 0) and np.allclose(big, 10 * small)
+    # 1 mrad of yaw moves a point about fx * 1e-3 px: 3-sigma margin of about 3.6 px
+    C = np.zeros((6, 6))
+    C[1, 1] = 1e-6
+    assert pose_margin_px(cam, T, pts[:1], C)[0] == pytest.approx(3 * cam.fx * 1e-3, rel=0.05)
+    lim = Limits(working_range_m=(1.0, 4.5))
+    n_known = len(candidates({"cam1": (cam, T)}, SonarField(), 0.11, lim).X_sonar_m)
+    n_unsure = len(candidates({"cam1": (cam, T)}, SonarField(), 0.11, lim, pose_cov={"cam1": 1e4 * st.cov}).X_sonar_m)
+    assert 0 < n_unsure < n_known
