@@ -15,7 +15,7 @@ import numpy as np
 from app.common import notify
 from calib_core.errors import SessionError
 from calib_core.plan.coverage import coverage, suggestions_on_image
-from calib_core.plan.report import plan_lines, status_line, suggestion_rows
+from calib_core.plan.report import compact_rows, plan_lines, status_line
 from calib_core.plan.select import DEFAULT_CRITERION
 from calib_core.plan.session_plan import field_from_session, plan_session
 from calib_core.plan.target import Target
@@ -100,9 +100,9 @@ class PlanPanel:
         if sp.plan.met and not (self.last is not None and self.last.plan.met):
             notify(self.wb.server, None, "Enough captures", status_line(sp.plan), color="green", seconds=12.0)
         self.last = sp
-        word = "**Enough**" if sp.plan.met else "**Not yet**"
-        self.status.content = f"{word}. {html.escape(status_line(sp.plan))}"
-        cols, rows = suggestion_rows(sp.plan, sp.field, sp.cameras)
+        head, rest = status_line(sp.plan).split(": ", 1)
+        self.status.content = f"**{html.escape(head.capitalize())}**: {html.escape(rest)}"
+        cols, rows = compact_rows(sp.plan)
         self.table.content = markdown_table(cols, rows) if rows else ""
         self.details.content = "  \n".join(html.escape(x) for x in plan_lines(sp)[1:])
         self._ghosts(sp, session.sphere_radius_m)

@@ -132,6 +132,7 @@ def suggestions_on_image(image_rgb: np.ndarray, cam_name: str, plan, max_width: 
     else:
         img = img.copy()
     legend = []
+    fs = float(np.clip(0.45 * img.shape[1] / 400, 0.4, 0.9))  # readable once the panel shrinks the image
     for k, sug in enumerate(plan.suggestions, 1):
         if cam_name not in sug.uv_px:
             continue
@@ -139,18 +140,18 @@ def suggestions_on_image(image_rgb: np.ndarray, cam_name: str, plan, max_width: 
         r = max(int(sug.radius_px[cam_name] * s), 6)
         cv2.circle(img, (int(u), int(v)), r, (255, 255, 255), 4, cv2.LINE_AA)
         cv2.circle(img, (int(u), int(v)), r, SUGGESTED, 2, cv2.LINE_AA)
-        _tag(img, str(k), (int(u) + int(0.7 * r), int(v) - int(0.7 * r)))
+        _tag(img, str(k), (int(u) + int(0.7 * r), int(v) - int(0.7 * r)), fs)
         rot, tr = sug.sigma_after[cam_name]
         legend.append(f"{k}: then {rot.max():.3f} deg / {tr.max():.1f} mm")
     for i, text in enumerate(reversed(legend)):
-        _tag(img, text, (6, img.shape[0] - 8 - 20 * i))
+        _tag(img, text, (6, img.shape[0] - 8 - int(44 * fs) * i), fs)
     return img
 
 
-def _tag(img, text: str, org) -> None:
+def _tag(img, text: str, org, scale: float = 0.45) -> None:
     """White text on a dark box at ``org`` (bottom-left), kept inside the image."""
-    (w, h), _ = cv2.getTextSize(text, FONT, 0.45, 1)
+    (w, h), _ = cv2.getTextSize(text, FONT, scale, 1)
     x = int(min(max(org[0], 2), img.shape[1] - w - 4))
     y = int(min(max(org[1], h + 4), img.shape[0] - 4))
     cv2.rectangle(img, (x - 3, y - h - 4), (x + w + 3, y + 4), (40, 40, 40), -1)
-    cv2.putText(img, text, (x, y), FONT, 0.45, (255, 255, 255), 1, cv2.LINE_AA)
+    cv2.putText(img, text, (x, y), FONT, scale, (255, 255, 255), 1, cv2.LINE_AA)

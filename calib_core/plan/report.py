@@ -44,6 +44,19 @@ def suggestion_rows(plan: Plan, field=None, cameras: list[str] | None = None):
     return cols, rows
 
 
+def compact_rows(plan: Plan):
+    """(columns, rows) for a narrow panel: rank, sonar-frame centre, range, worst axis after over all cameras."""
+    cols = ["#", "sonar x, y, z (m)", "range (m)", "then (worst axis)"]
+    rows = []
+    for i, s in enumerate(plan.suggestions, 1):
+        X = s.X_sonar_m
+        r = max(v[0].max() for v in s.sigma_after.values())
+        t = max(v[1].max() for v in s.sigma_after.values())
+        rows.append([str(i), f"{X[0]:+.2f}, {X[1]:+.2f}, {X[2]:+.2f}", f"{np.linalg.norm(X):.2f}",
+                     f"{r:.3f} deg / {t:.1f} mm" + (" (enough)" if s.ratio_after <= 1.0 else "")])
+    return cols, rows
+
+
 def plan_lines(sp) -> list[str]:
     """Plain-text summary lines of a SessionPlan (status, criterion, limits, field, skipped cameras)."""
     f = sp.field
