@@ -5,7 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from calib_core.plan import Limits, NoiseModel, SonarField, Target, candidates, field_from_points, parse_target, plan_next
+from calib_core.plan import (Limits, NoiseModel, SonarField, Target, candidates, field_from_points, fit_noise, parse_target,
+                             plan_next)
 from calib_core.plan.candidates import far_from, grid_points, outline_visible
 from calib_core.plan.information import capture_terms, information, logdet_gain, safe_inverse, updated_cov
 from calib_core.plan.select import CameraState
@@ -188,3 +189,18 @@ def test_pose_uncertainty_widens_the_image_margin():
     n_known = len(candidates({"cam1": (cam, T)}, SonarField(), 0.11, lim).X_sonar_m)
     n_unsure = len(candidates({"cam1": (cam, T)}, SonarField(), 0.11, lim, pose_cov={"cam1": 1e4 * st.cov}).X_sonar_m)
     assert 0 < n_unsure < n_known
+
+
+def test_noise_model_is_fitted_from_the_stated_covariances():
+    from calib_core.plan.noise import default_noise
+
+    truth = NoiseModel(np.diag([0.3, 0.5]) ** 2, 0.002, 0.004)
+    rng = np.random.default_rng(2)
+    X = SonarField().to_sonar(rng.uniform(-40, 40, 30), rng.uniform(-30, 30, 30), rng.uniform(1, 5, 30))
+    got = fit_noise(np.repeat(truth.cov_uv_px2[None], 30, 0), X, truth.sonar_cov(X))
+    assert np.allclose(got.cov_uv_px2, truth.cov_uv_px2)
+    assert got.sigma_along_m == pytest.approx(0.002) and got.sigma_across_per_m == pytest.approx(0.004)
+    Y = np.array([[3.0, 0, 0]])
+    assert np.allclose(got.sonar_cov(Y)[0], np.diag([0.002**2, 0.012**2, 0.012**2]))
+    empty, d = fit_noise(np.zeros((0, 2, 2)), np.zeros((0, 3)), np.zeros((0, 3, 3))), default_noise()
+    assert np.array_equal(empty.cov_uv_px2, d.cov_uv_px2) and empty.sigma_along_m == d.sigma_along_m
