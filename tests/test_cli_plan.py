@@ -87,3 +87,19 @@ def test_cli_too_few_captures_or_no_session(tmp_path, capsys):
     assert len(err.splitlines()) == 1 and "detections.yaml" in err and "at least 4" in err
     assert run_cli(["plan", str(tmp_path / "nowhere")]) == 2
     assert len(capsys.readouterr().err.strip().splitlines()) == 1
+
+
+def test_sonar_field_from_session_yaml_and_bad_values(tmp_path, capsys):
+    sess = planning_session(tmp_path)
+    man = yaml.safe_load((sess / "session.yaml").read_text())
+    # this test sonar writes z forward, so a declared x-forward field sees none of it: nothing to suggest
+    man["sonar"]["field"] = {"azimuth_deg": [-30, 30], "elevation_deg": [-20, 20], "range_m": [0.5, 6]}
+    (sess / "session.yaml").write_text(yaml.safe_dump(man))
+    assert run_cli(["plan", str(sess)]) == 0
+    out = capsys.readouterr().out
+    assert "session.yaml sonar.field" in out and "0 candidate positions" in out and "no position" in out
+    man["sonar"]["field"] = {"azimuth_deg": [30, -30], "elevation_deg": [-20, 20], "range_m": [0.5, 6]}
+    (sess / "session.yaml").write_text(yaml.safe_dump(man))
+    assert run_cli(["plan", str(sess)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "session.yaml" in err and "sonar.field" in err and "azimuth_deg" in err

@@ -68,3 +68,28 @@ def field_from_points(points_sonar_m: np.ndarray, lo_pct: float = 1.0, hi_pct: f
     az, el, r = f.angles(P)
     pct = lambda v: (float(np.percentile(v, lo_pct)), float(np.percentile(v, hi_pct)))  # noqa: E731
     return SonarField(pct(az), pct(el), pct(r), R, f"clouds ({len(P)} points)")
+
+
+def field_from_manifest(session) -> SonarField | None:
+    """The optional ``sonar.field`` of session.yaml (the sonar model's scanned volume), or None::
+
+        sonar:
+          field: {azimuth_deg: [-45, 45], elevation_deg: [-45, 45], range_m: [0.7, 8.0]}
+
+    Angles about the sonar's x axis (x forward, y left, z up). Raises SessionError on bad values."""
+    from calib_core.errors import SessionError
+
+    raw = ((session.raw or {}).get("sonar") or {}).get("field") if isinstance((session.raw or {}).get("sonar"), dict) else None
+    if raw is None:
+        return None
+    keys = ("azimuth_deg", "elevation_deg", "range_m")
+    try:
+        lims = [tuple(float(v) for v in raw[k]) for k in keys]
+    except (KeyError, TypeError, ValueError):
+        raise SessionError(session.manifest_path, "sonar.field needs azimuth_deg, elevation_deg and range_m, "
+                                                  "each [min, max]") from None
+    bad = [k for k, lim in zip(keys, lims) if len(lim) != 2 or not all(np.isfinite(lim)) or not lim[0] < lim[1]]
+    if bad or not (-180 <= lims[0][0] and lims[0][1] <= 180 and -90 <= lims[1][0] and lims[1][1] <= 90 and lims[2][0] >= 0):
+        raise SessionError(session.manifest_path, f"sonar.field: {', '.join(bad) or 'angles'} must be [min, max] with "
+                                                  f"min < max (azimuth within +-180, elevation within +-90 deg, range >= 0)")
+    return SonarField(lims[0], lims[1], lims[2], np.eye(3), "session.yaml sonar.field")

@@ -16,7 +16,7 @@ import numpy as np
 
 from calib_core.errors import SessionError
 from calib_core.plan.candidates import Limits, candidates
-from calib_core.plan.field import SonarField, field_from_points
+from calib_core.plan.field import SonarField, field_from_manifest, field_from_points
 from calib_core.plan.information import capture_terms, information, safe_inverse
 from calib_core.plan.noise import fit_noise
 from calib_core.plan.select import DEFAULT_CRITERION, CameraState, Plan, plan_next
@@ -38,11 +38,16 @@ class SessionPlan:
 
 def field_from_session(session, load_points=None, max_clouds: int = 4, max_points: int = 20000,
                        seed: int = 0) -> SonarField:
-    """Field spanned by up to ``max_clouds`` of the session's clouds (evenly spread over the list).
+    """The sonar field: session.yaml's optional ``sonar.field`` (see
+    :func:`calib_core.plan.field.field_from_manifest`), else the field spanned by up to ``max_clouds``
+    of the session's clouds (evenly spread over the list).
 
     ``load_points(capture_id) -> (N,3)`` lets a shell use its cache; default: read the file."""
     from calib_core.io.clouds import load_cloud
 
+    declared = field_from_manifest(session)
+    if declared is not None:
+        return declared
     caps = session.captures
     if not caps:
         return SonarField()
