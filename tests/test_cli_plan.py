@@ -103,3 +103,21 @@ def test_sonar_field_from_session_yaml_and_bad_values(tmp_path, capsys):
     assert run_cli(["plan", str(sess)]) == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and "session.yaml" in err and "sonar.field" in err and "azimuth_deg" in err
+
+
+def test_broken_cloud_one_line_in_a_real_process(tmp_path):
+    import os
+    import subprocess
+    import sys
+
+    from conftest import VENV_SONARCAL
+
+    sess = planning_session(tmp_path)
+    (sess / "clouds" / "p01.ply").write_bytes(b"ply\nformat ascii 1.0\nelement vertex 5\nend_header\n1 2\n")
+    before = tree_hash(sess)
+    cmd = [str(VENV_SONARCAL)] if VENV_SONARCAL.exists() else [sys.executable, "-m", "sonarcal_cli.main"]
+    r = subprocess.run(cmd + ["plan", str(sess)], capture_output=True, text=True, timeout=180,
+                       env=dict(os.environ, COLUMNS="120"))
+    lines = [ln for ln in r.stderr.splitlines() if ln.strip()]
+    assert r.returncode == 2 and len(lines) == 1 and "p01.ply" in lines[0] and "Traceback" not in r.stderr, r.stderr
+    assert tree_hash(sess) == before
