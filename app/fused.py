@@ -12,6 +12,7 @@ import numpy as np
 from app.common import guarded, notify
 from calib_core import fusion
 from calib_core.errors import SessionError
+from calib_core.markup import escape_md
 
 UNCOLOURED = (90, 90, 90)
 
@@ -75,11 +76,12 @@ class FusedPanel:
         self.node = sc.add_point_cloud("/fused", P.astype(np.float32), colours, point_size=float(self.wb.scene3d.point_size.value),
                                        precision="float32", point_shape="circle")
         self.fused_id = cid
-        self.info.content = (f"**{cid}**: {int(coloured.sum())} of {len(P)} points coloured from {', '.join(cams)}"
-                             f" ({100 * coloured.mean():.0f} %); grey points are not seen by any camera.")
+        text = (f"{int(coloured.sum())} of {len(P)} points coloured from {', '.join(cams)}"
+                f" ({100 * coloured.mean():.0f} %); grey points are not seen by any camera.")
+        self.info.content = f"**{escape_md(cid)}**: {escape_md(text)}"
         self.show.value = True
         self._visibility()
-        notify(self.wb.server, event.client, "Fused cloud ready", self.info.content, color="green", seconds=4)
+        notify(self.wb.server, event.client, "Fused cloud ready", f"{cid}: {text}", color="green", seconds=4)
 
     def _visibility(self) -> None:
         if self.node is not None:

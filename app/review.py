@@ -11,6 +11,7 @@ import numpy as np
 
 from app.common import client_tag, guarded, notify
 from calib_core.errors import SessionError
+from calib_core.markup import escape_md
 from calib_core.pipeline import refit_sonar
 
 ALL = "all sensors"
@@ -208,7 +209,7 @@ class ReviewPanel:
         if self.capture.value != sel:
             self.capture.value = sel
         cams = list(st.session.cameras)
-        head = "| | capture | sonar | " + " | ".join(cams) + " |\n|---|---|---|" + "---|" * len(cams) + "\n"
+        head = "| | capture | sonar | " + " | ".join(escape_md(c) for c in cams) + " |\n|---|---|---|" + "---|" * len(cams) + "\n"
         lines = []
         for r in rows:
             cells = []
@@ -224,16 +225,16 @@ class ReviewPanel:
                     txt += f" {c['score']:.2f}"
                 if c["residual_px"] is not None:
                     txt += f" · {c['residual_px']:.1f} px"
-                cells.append(txt)
+                cells.append(escape_md(txt))
             mark = "▶" if r["id"] == sel else ""
-            lines.append(f"| {mark} | {r['id']} | " + " | ".join(cells) + " |")
+            lines.append(f"| {mark} | {escape_md(r['id'])} | " + " | ".join(cells) + " |")
         self.table.content = "**Captures (worst first)**\n\n" + head + "\n".join(lines)
         self.details.content = self._details(sel)
         self.refresh_handle()
 
     def _details(self, cid: str) -> str:
         st = self.wb.state
-        out = [f"**{cid}**"]
+        out = [f"**{escape_md(cid)}**"]
         for sensor in st.sensors(cid):
             e = st.entry(cid, sensor) or {}
             c = e.get("center")
@@ -241,5 +242,5 @@ class ReviewPanel:
             why = f" ({e['reason']})" if e.get("reason") else ""
             hist = e.get("history") or []
             last = f"; last change {hist[-1]['time']} by {hist[-1]['client']}" if hist else ""
-            out.append(f"- {sensor}: {e.get('status', 'missing')} {where}{why}{last}")
+            out.append("- " + escape_md(f"{sensor}: {e.get('status', 'missing')} {where}{why}{last}"))
         return "\n".join(out)

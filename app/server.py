@@ -9,14 +9,16 @@ shows a notification in the page and the server carries on.
 from __future__ import annotations
 
 import logging
-import tempfile
 from pathlib import Path
 
 import viser
 
 from app.common import JobRunner, Refresher, error_text, notify
+from app.guard import ConnectionGuard, new_token, start_guarded
+from app.uploads import UploadStore, port_taken_warning, release_session_lock
 from app.state import WorkbenchState
 from calib_core.errors import SessionError
+from calib_core.markup import escape_md
 
 log = logging.getLogger("sonarcal.app")
 
@@ -33,7 +35,7 @@ class Workbench:
     """
 
     def __init__(self, session_path=None, host: str = "127.0.0.1", port: int = 8080,
-                 allowed_roots=None, uploads_dir=None, verbose: bool = False):
+                 allowed_roots=None, uploads_dir=None, verbose: bool = False, token: str | None = "auto"):
         from app.fused import FusedPanel
         from app.images import ImagePanels
         from app.plan_panel import PlanPanel
@@ -42,11 +44,20 @@ class Workbench:
         from app.session_panel import SessionPanel
         from app.solve_panel import SolvePanel
 
-        self.uploads_dir = Path(uploads_dir) if uploads_dir else Path(tempfile.mkdtemp(prefix="sonarcal-uploads-"))
+        self.uploads = UploadStore(uploads_dir)
+        self.uploads_dir = self.uploads.root
         if allowed_roots is None:
             allowed_roots = [Path.cwd()] + ([Path(session_path).resolve().parent] if session_path else [])
         self.state = WorkbenchState(allowed_roots=list(allowed_roots) + [self.uploads_dir])
-        self.server = viser.ViserServer(host=host, port=port, label="sonarcal workbench", verbose=verbose)
+        self.guard = ConnectionGuard(new_token() if token == "auto" else token, host)
+        self.requested_port = port
+        self.server = start_guarded(self.guard, lambda: viser.ViserServer(
+            host=host, port=port, label="sonarcal workbench", verbose=verbose))
+        self.guard.port = self.server.get_port()
+        self.port_warning = port_taken_warning(port, self.guard.port)
+        if self.port_warning:
+            log.warning(self.port_warning)
+        self._stopped = False
         self.server.gui.configure_theme(control_width="large", dark_mode=False, show_share_button=False)
         self.server.gui.main_panel.dock_right()  # beside the 3D view, so the view is never covered
         self.refresher = Refresher(on_error=lambda kind, e: notify(self.server, None, f"Display of {kind} failed", error_text(e)))
@@ -93,13 +104,27 @@ class Workbench:
         return self.server.get_port()
 
     @property
+    def token(self) -> str | None:
+        return self.guard.token
+
+    @property
     def url(self) -> str:
-        return f"http://{self.host}:{self.port}/"
+        """The full URL to open, token included (``--no-token``: without one)."""
+        base = f"http://{self.host}:{self.port}/"
+        return base if self.token is None else f"{base}?token={self.token}"
 
     def stop(self) -> None:
-        self.refresher.wait_idle(10)
-        self.refresher.stop()
-        self.server.stop()
+        """Stop the server; remove the uploads and this server's lock file. Safe to call twice."""
+        if self._stopped:
+            return
+        self._stopped = True
+        try:
+            self.refresher.wait_idle(10)
+            self.refresher.stop()
+            self.server.stop()
+        finally:
+            self.uploads.cleanup()
+            release_session_lock(self.state.session.root if self.state.session is not None else None)
 
     def wait_idle(self, timeout: float = 60.0) -> bool:
         """Block until running jobs and pending display refreshes are done (tests, benchmarks)."""
@@ -113,7 +138,11 @@ class Workbench:
         if self.jobs.running is not None:
             raise SessionError(Path(str(path)), f"'{self.jobs.running}' is still running on the open session; "
                                "open another one when it has finished")
+        old = self.state.session.root if self.state.session is not None else None
         self.state.open(path, check_root=check_root)  # detection of what is missing starts once it is on screen
+        if old is not None and old != self.state.session.root:
+            release_session_lock(old)  # the lock file of the session left behind
+        self.uploads.keep_only(self.state.session.root)  # a replaced uploaded session is deleted
 
     def start_detection(self, captures=None, redetect_auto: bool = False) -> None:
         from calib_core.pipeline import detect_session
@@ -132,8 +161,8 @@ class Workbench:
     def _on_session(self) -> None:
         s = self.state.session
         if s is not None:
-            self.title.content = (f"**sonarcal workbench**: `{s.name}` ({len(s.captures)} captures, "
-                                  f"cameras {', '.join(s.cameras)})")
+            self.title.content = (f"**sonarcal workbench**: {escape_md(s.name)} ({len(s.captures)} captures, "
+                                  f"cameras {escape_md(', '.join(s.cameras))})")
         for w in self.state.warnings:
             notify(self.server, None, "Session warning", w, color="yellow")
         self.images.rebuild()
@@ -163,7 +192,7 @@ class Workbench:
             self.solve.job_finished(name)
             return
         self.progress.value = float(min(max(pct, 0.0), 100.0))
-        self.progress_label.content = f"{name}: {label}"
+        self.progress_label.content = escape_md(f"{name}: {label}")
         self.progress.visible = True
         self.progress_label.visible = True
 
@@ -171,6 +200,6 @@ class Workbench:
         notify(self.server, None, f"{name.capitalize()} failed", error_text(e), seconds=15.0)
 
 
-def serve(session_path, host: str = "127.0.0.1", port: int = 8080) -> Workbench:
+def serve(session_path, host: str = "127.0.0.1", port: int = 8080, token: str | None = "auto") -> Workbench:
     """Start a workbench (returns at once; the server runs in its own threads)."""
-    return Workbench(session_path, host=host, port=port)
+    return Workbench(session_path, host=host, port=port, token=token)

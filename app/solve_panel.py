@@ -10,6 +10,7 @@ import cv2
 import numpy as np
 
 from app.common import guarded, notify
+from calib_core.markup import escape_md
 from calib_core.solve.summary import pose_rows, residual_rows, scale_line, table_i_rows
 
 BAR_RGB = [(255, 120, 0), (0, 150, 150), (150, 60, 220), (120, 120, 0)]
@@ -69,8 +70,8 @@ def residual_plot(cal: dict, width: int = 900, height: int = 360) -> np.ndarray 
 
 
 def md_table(cols, rows) -> str:
-    """A markdown table (cells with '|' escaped)."""
-    esc = lambda v: str(v).replace("|", "\\|")  # noqa: E731
+    """A markdown table (every cell escaped)."""
+    esc = escape_md  # names and texts from files: no markup reaches the page
     out = ["| " + " | ".join(esc(c) for c in cols) + " |", "|" + "---|" * len(cols)]
     out += ["| " + " | ".join(esc(c) for c in r) + " |" for r in rows]
     return "\n".join(out)
@@ -93,7 +94,7 @@ def _describe_minimal(cal: dict) -> str:
         T = np.asarray(c.get("T_cam_sonar"), float)
         t_mm = " ".join(f"{v:.1f}" for v in 1000 * T[:3, 3]) if T.shape == (4, 4) else "?"
         rms = c.get("rms_reprojection_px")
-        out.append(f"- {cam}: t (mm) {t_mm}" + (f"; RMS {rms:.2f} px" if isinstance(rms, (int, float)) else ""))
+        out.append(f"- {escape_md(cam)}: t (mm) {t_mm}" + (f"; RMS {rms:.2f} px" if isinstance(rms, (int, float)) else ""))
     return "\n".join(out)
 
 
@@ -101,19 +102,19 @@ def _describe_full(cal: dict) -> str:
     cols, rows = pose_rows(cal)
     out = ["**Pose T_cam_sonar** (sonar origin in the camera frame)", "",
            md_table(["", *[r[0] for r in rows]], [[c, *[r[i] for r in rows]] for i, c in enumerate(cols) if i > 0]),
-           "", f"**Range scale**: {scale_line(cal)}"]
+           "", f"**Range scale**: {escape_md(scale_line(cal))}"]
     for cam in cal["cameras"]:
         cols, rows = residual_rows(cal, cam)
         keep = [cols.index(c) for c in ("capture", "used", "residual px", "Mahalanobis", "flags")]
-        out += ["", f"**{cam}: residuals per capture**", "", md_table([cols[i] for i in keep], [[r[i] for i in keep] for r in rows])]
+        out += ["", f"**{escape_md(cam)}: residuals per capture**", "", md_table([cols[i] for i in keep], [[r[i] for i in keep] for r in rows])]
         for o in cal["cameras"][cam].get("outliers") or []:
             for why in o.get("reasons", []):
-                out.append(f"- ⚠ {cam} {o['capture']}: {why}")
+                out.append("- ⚠ " + escape_md(f"{cam} {o['capture']}: {why}"))
     ti = table_i_rows(cal)
     if ti:
         out += ["", "**Table I** (independent solves, mm)", "", md_table(*ti)]
     for w in cal.get("warnings") or []:
-        out.append(f"- ⚠ {w}")
+        out.append(f"- ⚠ {escape_md(w)}")
     return "\n".join(out)
 
 

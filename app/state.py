@@ -221,7 +221,8 @@ class WorkbenchState:
             try:
                 import fcntl
 
-                fd = os.open(self.session.root / ".detections.yaml.lock", os.O_CREAT | os.O_RDWR, 0o644)
+                fd = os.open(self.session.root / ".detections.yaml.lock",
+                             os.O_CREAT | os.O_RDWR | getattr(os, "O_NOFOLLOW", 0), 0o644)  # never a symlink out
                 fcntl.flock(fd, fcntl.LOCK_EX)
             except (ImportError, OSError):  # no flock (or read-only folder): the process lock still holds
                 if fd is not None:
@@ -370,7 +371,7 @@ class WorkbenchState:
         path = calibration_path(s)
         with self.lock:
             self._same_session(session)
-            save_calibration(path, result)
+            save_calibration(path, result, root=s.root)
             self.calibration = result
             self.cal_version += 1
             self.version += 1

@@ -17,6 +17,8 @@ from pathlib import Path
 
 from calib_core.errors import SessionError, short_repr
 from calib_core.io.atomic import atomic_write_yaml
+from calib_core.io.confine import confine_write
+from calib_core.io.yaml_safe import read_yaml_mapping
 
 DETECTIONS_FORMAT = "sonar-camera-detections/1"
 DETECTIONS_FILE = "detections.yaml"
@@ -26,13 +28,12 @@ OPERATOR_STATUSES = ("accepted", "corrected", "rejected")
 
 
 def detections_path(session) -> Path:
-    return Path(session.root) / DETECTIONS_FILE
+    """The session's detections.yaml; refused (SessionError) when it is a symlink out of the session."""
+    return confine_write(session.root, Path(session.root) / DETECTIONS_FILE)
 
 
 def load_detections(session) -> dict:
     """Read and validate the session's detections.yaml ({} when it does not exist)."""
-    from calib_core.session import read_yaml_mapping
-
     path = detections_path(session)
     if not path.exists():
         return {}
@@ -94,7 +95,8 @@ def save_detections(session, detections: dict) -> None:
     """Write detections.yaml atomically (captures in manifest order)."""
     order = [c.id for c in session.captures]
     caps = {cid: detections[cid] for cid in order if cid in detections and detections[cid]}
-    atomic_write_yaml(detections_path(session), {"format": DETECTIONS_FORMAT, "captures": _plain(caps)})
+    path = confine_write(session.root, detections_path(session))
+    atomic_write_yaml(path, {"format": DETECTIONS_FORMAT, "captures": _plain(caps)})
 
 
 def _plain(x):

@@ -32,6 +32,7 @@ from scipy.spatial.transform import Rotation
 
 from calib_core.camera import CameraModel
 from calib_core.geometry import invert_T
+from calib_core.markup import plain_line, ros_frame_id
 
 FORMATS = ("json", "tf-static", "tf2-yaml", "urdf", "kalibr", "camera-info")
 NEEDS_INTRINSICS = ("kalibr", "camera-info")
@@ -53,12 +54,18 @@ class FrameNames:
     parent: str = "sonar"
 
     def camera(self, cam: str) -> str:
-        return self.camera_pattern.format(cam=cam)
+        """The camera's frame id: the pattern filled in, made a valid ROS frame id."""
+        return ros_frame_id(self.camera_pattern.replace("{cam}", ros_frame_id(cam)))
+
+    @property
+    def sonar_frame(self) -> str:
+        return ros_frame_id(self.sonar)
 
     def parent_child(self, cam: str) -> tuple[str, str]:
         if self.parent not in ("sonar", "camera"):
             raise ValueError(f"parent must be 'sonar' or 'camera', got {self.parent!r}")
-        return (self.sonar, self.camera(cam)) if self.parent == "sonar" else (self.camera(cam), self.sonar)
+        sonar = self.sonar_frame
+        return (sonar, self.camera(cam)) if self.parent == "sonar" else (self.camera(cam), sonar)
 
 
 def _f(x: float) -> str:
@@ -94,7 +101,7 @@ def T_parent_child(calibration: dict, cam: str, frames: FrameNames) -> np.ndarra
 
 def _frame_comment(frames: FrameNames, prefix: str = "# ") -> str:
     lines = [
-        f"Frames: sonar frame '{frames.sonar}' (the frame the sonar cloud is written in, metres);",
+        f"Frames: sonar frame '{frames.sonar_frame}' (the frame the sonar cloud is written in, metres);",
         f"camera frame '{frames.camera('<cam>')}' (OpenCV/ROS optical: x right, y down, z forward).",
         "Each transform is the pose of the child frame in the parent frame (T_parent_child, maps child points",
         f"into the parent); parent here is the {frames.parent} frame. T_cam_sonar maps sonar points into the camera.",
@@ -132,7 +139,7 @@ def to_tf_static(calibration: dict, camera: str | None = None, frames: FrameName
         T = T_parent_child(calibration, cam, frames)
         q = quaternion_xyzw(T[:3, :3])
         nums = [*T[:3, 3], *q]
-        text += f"# {cam}: pose of '{child}' in '{parent}'\n"
+        text += f"# {plain_line(cam)}: pose of '{child}' in '{parent}'\n"
         text += "rosrun tf2_ros static_transform_publisher " + " ".join(_f(v) for v in nums) + f" {parent} {child} &\n"
         named = " ".join(f"--{k} {_f(v)}" for k, v in zip(("x", "y", "z", "qx", "qy", "qz", "qw"), nums))
         text += f"# ROS 2: ros2 run tf2_ros static_transform_publisher {named} --frame-id {parent} --child-frame-id {child}\n"
@@ -202,7 +209,7 @@ def to_kalibr(calibration: dict, intrinsics: dict[str, CameraModel], camera: str
         T = np.asarray(c["T_cam_sonar"], float)
         k1, k2, p1, p2, k3 = (float(v) for v in m.dist)
         if k3 != 0.0:
-            notes.append(f"# {cam}: k3 = {_f(k3)} is not part of Kalibr's radtan model and was dropped.")
+            notes.append(f"# {plain_line(cam)}: k3 = {_f(k3)} is not part of Kalibr's radtan model and was dropped.")
         entry = {
             "camera_name": cam,
             "camera_model": "pinhole",
@@ -230,7 +237,7 @@ def to_camera_info(cam_model: CameraModel, name: str) -> str:
     """ROS camera_info YAML (as ROS camera_calibration writes it) for one camera."""
     from calib_core.io.intrinsics import camera_info_dict
 
-    head = (f"# Intrinsics of camera '{name}' (ROS camera_info). Pixels of the raw image; frame:\n"
+    head = (f"# Intrinsics of camera '{plain_line(name)}' (ROS camera_info). Pixels of the raw image; frame:\n"
             f"# the camera's optical frame (x right, y down, z forward). Distortion plumb_bob, OpenCV order.\n")
     return head + yaml.safe_dump(camera_info_dict(cam_model, name), sort_keys=False, default_flow_style=None)
 

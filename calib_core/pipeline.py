@@ -69,7 +69,9 @@ class SessionData:
                 self.backgrounds[cam] = None
             else:
                 start, end = spec.background_window_s
-                frames = load_background_frames(spec.background_path, start_s=start, end_s=end)
+                model = self.camera(cam)
+                frames = load_background_frames(spec.background_path, (model.width_px, model.height_px),
+                                                root=self.session.root, start_s=start, end_s=end)
                 _check_image_size(spec.background_path, frames[0], self.camera(cam))
                 self.backgrounds[cam] = prepare_background(background_model(frames, how="median"))
         return self.backgrounds[cam]
@@ -93,8 +95,8 @@ def detect_image_entry(data: SessionData | Session, capture_id: str, cam: str,
 
     data = _as_data(data)
     path = data.session.capture(capture_id).image_paths[cam]
-    image = load_image(path)
     model = data.camera(cam)
+    image = load_image(path, (model.width_px, model.height_px))
     _check_image_size(path, image, model)
     det = detect_sphere_in_image(image, model, data.session.sphere_radius_m, background=data.background(cam),
                                  hint_uv_px=hint_uv_px, hint_radius_px=hint_radius_px)

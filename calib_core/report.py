@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import datetime as _dt
 import math
-from html import escape
 from pathlib import Path
 
 import numpy as np
@@ -23,6 +22,7 @@ from scipy.spatial.transform import Rotation
 
 from calib_core import __version__
 from calib_core.errors import SessionError
+from calib_core.markup import escape_html
 from calib_core.report_captures import CaptureView, ReportOptions, calibrated_T, capture_view, range_scale
 from calib_core.report_svg import bar_chart, scatter_residuals, sigma_chart
 
@@ -40,7 +40,7 @@ figcaption{font-size:12px;color:#555}img{max-width:100%;border:1px solid #ccc}.h
 
 
 def _e(x) -> str:
-    return escape(str(x))
+    return escape_html(x)
 
 
 def _fmt(v, fmt: str = ".2f", none: str = "-") -> str:
@@ -303,6 +303,9 @@ def write_report(session, out_path: str | Path, calibration: dict | None, detect
     """Build the report and write it atomically to ``out_path``; returns the path."""
     from calib_core.io.atomic import atomic_write_text
 
+    from calib_core.io.confine import confine_write
+
+    confine_write(session.root, out_path, explicit=True)  # inside the session: no symlink out of it
     html = build_report(session, calibration, detections, progress, options, calibration_note)
     atomic_write_text(out_path, html)
     return Path(out_path)

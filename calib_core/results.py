@@ -7,18 +7,27 @@ from pathlib import Path
 
 from calib_core.errors import SessionError, short_repr
 from calib_core.io.atomic import atomic_write_json
+from calib_core.io.confine import confine_write
 
 CALIBRATION_FORMAT = "sonar-camera-calibration/1"
+MAX_CALIBRATION_BYTES = 50_000_000
 
 
 def calibration_path(session) -> Path:
-    return Path(session.root) / "results" / "calibration.json"
+    """``results/calibration.json`` of the session; refused (SessionError) when a symlink
+    on the way leads out of the session folder."""
+    return confine_write(session.root, Path(session.root) / "results" / "calibration.json")
 
 
-def save_calibration(path: str | Path, result: dict) -> None:
-    """Write a calibration result dict atomically (must carry the contract's keys)."""
+def save_calibration(path: str | Path, result: dict, root=None, explicit: bool = False) -> None:
+    """Write a calibration result dict atomically (must carry the contract's keys).
+
+    With ``root`` (the session folder) the path is confined to it first
+    (:func:`calib_core.io.confine.confine_write`)."""
     if result.get("format") != CALIBRATION_FORMAT or "cameras" not in result:
         raise ValueError("calibration result lacks the contract keys 'format' and 'cameras'")
+    if root is not None:
+        confine_write(root, path, explicit=explicit)
     atomic_write_json(path, result)
 
 
@@ -30,6 +39,9 @@ def load_calibration(path: str | Path) -> dict:
     if not path.is_file():
         raise SessionError(path, "calibration file not found (run 'sonarcal calibrate' first)")
     try:
+        size = path.stat().st_size
+        if size > MAX_CALIBRATION_BYTES:
+            raise SessionError(path, f"calibration file is {size / 1e6:.0f} MB: far more than a calibration holds")
         data = json.loads(path.read_text(encoding="utf-8-sig"))
     except (UnicodeDecodeError, json.JSONDecodeError) as e:
         raise SessionError(path, f"invalid JSON ({e})") from None

@@ -13,16 +13,19 @@ Extensions to the contract (all optional):
 
 from __future__ import annotations
 
+import datetime
 import math
+import unicodedata
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-import yaml
 
 from calib_core.camera import CameraModel
 from calib_core.errors import SessionError, short_repr
+from calib_core.io.confine import confine_write
+from calib_core.io.yaml_safe import read_yaml_mapping
 
 SESSION_FORMAT = "sonar-camera-session/1"
 MANIFEST = "session.yaml"
@@ -122,33 +125,7 @@ def _num(manifest, value, what, positive=True):
     return v
 
 
-MAX_YAML_BYTES = 50 * 1024 * 1024
 _YAML11_EXPONENT = re.compile(r"^[-+]?(\d+\.?\d*|\.\d+)[eE][-+]?\d+$")
-
-
-def read_yaml_mapping(path: Path, what: str = "file") -> dict:
-    """Read a YAML file that must hold a mapping; clear errors for missing/invalid files."""
-    if not path.is_file():
-        raise SessionError(path, f"{what} not found" if not path.exists() else f"{what} is not a regular file")
-    try:
-        if path.stat().st_size > MAX_YAML_BYTES:
-            raise SessionError(path, f"{what} is {path.stat().st_size / 1e6:.0f} MB: too large for a YAML file here")
-        text = path.read_text(encoding="utf-8-sig")
-    except UnicodeDecodeError:
-        raise SessionError(path, "not a text file (invalid UTF-8)") from None
-    except OSError as e:
-        raise SessionError(path, f"cannot read {what}: {e.strerror or e}") from None
-    try:
-        data = yaml.load(text, Loader=getattr(yaml, "CSafeLoader", yaml.SafeLoader))  # libyaml: same YAML, faster
-    except yaml.YAMLError as e:
-        mark = getattr(e, "problem_mark", None)
-        where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark else ""
-        raise SessionError(path, f"invalid YAML{where}: {getattr(e, 'problem', None) or e}") from None
-    except RecursionError:
-        raise SessionError(path, "invalid YAML: nested too deeply") from None
-    if not isinstance(data, dict):
-        raise SessionError(path, f"expected a YAML mapping at the top level, got {type(data).__name__}")
-    return data
 
 
 def load_session(folder: str | Path) -> Session:
@@ -165,7 +142,7 @@ def load_session(folder: str | Path) -> Session:
     if not root.is_dir():
         raise SessionError(root, "not a folder (give the session folder that holds session.yaml)")
     root = root.resolve()
-    manifest = root / MANIFEST
+    manifest = confine_write(root, root / MANIFEST)  # a session.yaml symlinked out of the folder is refused
     data = read_yaml_mapping(manifest, "session manifest (session.yaml)")
 
     fmt = data.get("format")
@@ -250,11 +227,11 @@ def load_session(folder: str | Path) -> Session:
 
     return Session(
         root=root,
-        name=str(data.get("name") or root.name),
+        name=_session_name(manifest, data.get("name"), root.name),
         sphere_diameter_m=diameter,
         cameras=cameras,
         captures=captures,
-        sonar_model=str(sonar.get("model") or ""),
+        sonar_model=_plain_text(manifest, sonar.get("model"), "sonar.model", ""),
         sound_speed_m_s=sound_speed,
         beam_width_deg=beam,
         measured_m=measured,
@@ -263,10 +240,37 @@ def load_session(folder: str | Path) -> Session:
     )
 
 
+def _plain_text(manifest: Path, value, what: str, default: str) -> str:
+    """A free-text field: a string or number of at most 200 characters (never str() of a tree)."""
+    if value is None or value == "":
+        return default
+    if isinstance(value, (datetime.date, datetime.datetime)):
+        value = value.isoformat()  # YAML reads an unquoted 2026-05-01 as a date
+    if isinstance(value, bool) or not isinstance(value, (str, int, float)):
+        raise SessionError(manifest, f"{what} must be text, got a {type(value).__name__}")
+    text = value if isinstance(value, str) else repr(value)
+    if len(text) > 200 or _has_control(text):
+        raise SessionError(manifest, f"{what} must be one line of text of at most 200 characters "
+                                     "(no control characters)")
+    return text
+
+
+def _has_control(text: str) -> bool:
+    """Control or format characters (newlines, ESC, bidi overrides): they would forge lines in
+    the terminal, in exported files and in tables."""
+    return any(unicodedata.category(ch) in ("Cc", "Cf") or ch in "\u2028\u2029" for ch in text)
+
+
+def _session_name(manifest: Path, value, default: str) -> str:
+    return _plain_text(manifest, value, "name", default)
+
+
 def _check_name(manifest: Path, name: str, what: str) -> None:
     """Camera names and capture ids end up in file names (exports, thumbnails): no path tricks."""
-    if not name.strip() or name in (".", "..") or any(ch in name for ch in "/\\\x00") or len(name) > 100:
-        raise SessionError(manifest, f"{what} {short_repr(name)} is not allowed (no '/', '\\', '..', empty or over 100 characters)")
+    if not name.strip() or name in (".", "..") or any(ch in name for ch in "/\\\x00") or len(name) > 100 \
+            or _has_control(name):
+        raise SessionError(manifest, f"{what} {short_repr(name)} is not allowed (no '/', '\\', '..', control "
+                                     "characters, empty or over 100 characters)")
 
 
 def _mapping(manifest: Path, value, what: str) -> dict:
@@ -325,7 +329,8 @@ def validate_session(folder: str | Path) -> SessionCheck:
         if spec.background_path is not None:
             try:
                 start, end = spec.background_window_s
-                frames = load_background_frames(spec.background_path, start_s=start, end_s=end)
+                wh = (models[name].width_px, models[name].height_px) if name in models else None
+                frames = load_background_frames(spec.background_path, wh, root=session.root, start_s=start, end_s=end)
                 if name in models:
                     _check_size(spec.background_path, frames[0], models[name], problems)
             except SessionError as e:
@@ -337,7 +342,7 @@ def validate_session(folder: str | Path) -> SessionCheck:
             problems.append(e)
         for cam, p in cap.image_paths.items():
             try:
-                img = load_image(p)
+                img = load_image(p, (models[cam].width_px, models[cam].height_px) if cam in models else None)
                 if cam in models:
                     _check_size(p, img, models[cam], problems)
             except SessionError as e:
@@ -350,11 +355,11 @@ def validate_session(folder: str | Path) -> SessionCheck:
         problems.append(e)
     from calib_core.results import calibration_path, load_calibration
 
-    if calibration_path(session).exists():
-        try:
+    try:
+        if calibration_path(session).exists():
             load_calibration(calibration_path(session))
-        except SessionError as e:
-            problems.append(e)
+    except SessionError as e:
+        problems.append(e)
     return SessionCheck(session, problems, models, points)
 
 

@@ -31,13 +31,16 @@ def run(args) -> int:
     session = load_session(args.session)
     detections = load_detections(session)
     out = Path(args.out) if args.out else calibration_path(session)
+    from calib_core.io.confine import confine_write
+
+    confine_write(session.root, out, explicit=bool(args.out))  # refuse before the solve, not after
     if out.is_dir():
         raise SessionError(out, "--out is a folder; give a file name such as calibration.json")
     opts = {"estimate_scale": args.scale, "robust": args.robust, "detect": not args.no_detect,
             "leave_one_out": not args.no_loo}
     with progress_bar("calibrate") as cb:
         cal = calibrate_session(session, detections, opts, progress=cb)
-    save_calibration(out, cal)
+    save_calibration(out, cal, root=session.root, explicit=bool(args.out))
     print_report(cal, quiet=args.quiet)
     console.print(f"wrote {out}")
     return 0

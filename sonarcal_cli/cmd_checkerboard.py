@@ -5,6 +5,8 @@ Registers two subcommands (this module is the "checkerboard" entry of main.COMMA
 
 from __future__ import annotations
 
+from rich.markup import escape
+
 import math
 from pathlib import Path
 
@@ -64,7 +66,7 @@ def run_intrinsics(args) -> int:
             raise SessionError(e.path or Path(args.folder), e.problem) from None
     save_intrinsics_ros(out, res.cam, name)
     c = res.cam
-    console.print(f"[bold]{name}[/bold]: {c.width_px} x {c.height_px}, fx {c.fx:.2f} fy {c.fy:.2f} "
+    console.print(f"[bold]{escape(name)}[/bold]: {c.width_px} x {c.height_px}, fx {c.fx:.2f} fy {c.fy:.2f} "
                   f"cx {c.cx:.2f} cy {c.cy:.2f} (1-sigma {res.sigma.get('fx', float('nan')):.2f} / "
                   f"{res.sigma.get('fy', float('nan')):.2f} / {res.sigma.get('cx', float('nan')):.2f} / "
                   f"{res.sigma.get('cy', float('nan')):.2f} px)")

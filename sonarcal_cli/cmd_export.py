@@ -8,6 +8,7 @@ from pathlib import Path
 from calib_core.errors import SessionError
 from calib_core.export import FORMATS, NEEDS_INTRINSICS, FrameNames, export_text
 from calib_core.io.atomic import atomic_write_text
+from calib_core.io.confine import confine_write
 from calib_core.results import calibration_path, load_calibration
 from calib_core.session import load_session
 
@@ -48,6 +49,7 @@ def run(args) -> int:
     except ValueError as e:
         raise SessionError(cal_path, str(e)) from None
     if args.out:
+        confine_write(session.root, args.out, explicit=True)
         atomic_write_text(args.out, text)
         print(f"wrote {args.out} ({args.format})", file=sys.stderr)
     else:

@@ -1,6 +1,9 @@
 """``sonarcal info SESSION``: summary of a session and every validation problem."""
 
+
 from __future__ import annotations
+
+from rich.markup import escape
 
 from calib_core.session import validate_session
 from sonarcal_cli.ui import console, err_console, table
@@ -16,7 +19,7 @@ def run(args) -> int:
     check = validate_session(args.session)
     s = check.session
     if s is not None:
-        console.print(f"[bold]{s.name}[/bold]  ({s.root})")
+        console.print(f"[bold]{escape(s.name)}[/bold]  ({escape(str(s.root))})")
         console.print(f"sphere diameter {s.sphere_diameter_m * 1000:.1f} mm; sonar {s.sonar_model or '-'}; "
                       f"sound speed {s.sound_speed_m_s or '-'} m/s; beam width {s.beam_width_deg:g} deg")
         cam_rows = []

@@ -8,6 +8,7 @@ import sys
 from rich.console import Console
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 from rich.table import Table
+from rich.text import Text
 
 # piped output: wide enough that report tables do not wrap
 console = Console(highlight=False, width=None if sys.stdout.isatty() else 160)
@@ -33,9 +34,10 @@ def progress_bar(description: str):
 
 
 def table(title: str, columns: list[str], rows: list[list]) -> Table:
-    t = Table(title=title, title_justify="left")
+    """A rich table; every title and cell is plain text (names from files are never rich markup)."""
+    t = Table(title=Text(title), title_justify="left")
     for c in columns:
-        t.add_column(c)
+        t.add_column(Text(str(c)))
     for r in rows:
-        t.add_row(*[str(v) for v in r])
+        t.add_row(*[Text(str(v)) for v in r])
     return t

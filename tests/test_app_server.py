@@ -35,7 +35,7 @@ def calibrate_fake(wb, T):
 
 def test_binds_loopback_by_default(wb):
     assert wb.host == "127.0.0.1" and wb.port > 0
-    assert wb.url == f"http://127.0.0.1:{wb.port}/"
+    assert wb.url == f"http://127.0.0.1:{wb.port}/?token={wb.token}" and len(wb.token) >= 24
     from sonarcal_cli import cmd_serve
 
     p = argparse.ArgumentParser()
@@ -129,11 +129,11 @@ def test_upload_of_a_zipped_session_opens_it(wb, tmp_path):
         for p in src.rglob("*"):
             if p.is_file():
                 zf.write(p, "other/" + str(p.relative_to(src)))
-    from viser import UploadedFile
-
-    wb.session_panel.upload._impl.value = UploadedFile("other.zip", buf.getvalue())
-    wb.session_panel._on_upload(None)
+    streamed = wb.uploads.incoming_file()
+    streamed.write_bytes(buf.getvalue())
+    wb.session_panel._on_upload(None, "other.zip", streamed)
     assert wb.wait_idle(30)
+    assert not streamed.exists()  # the streamed zip is deleted once unpacked
     assert wb.state.session.name == "uploaded"
     assert (tmp_path / "uploads").resolve() in wb.state.session.root.parents
 

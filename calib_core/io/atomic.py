@@ -93,10 +93,16 @@ def atomic_write_text(path: str | Path, text: str) -> None:
     atomic_write_bytes(path, text.encode("utf-8"))
 
 
+class _NoAliasDumper(getattr(yaml, "CSafeDumper", yaml.SafeDumper)):
+    """Safe YAML without anchors/aliases: a shared sub-tree is written out in full."""
+
+    def ignore_aliases(self, data):
+        return True
+
+
 def atomic_write_yaml(path: str | Path, data) -> None:
-    """Safe YAML (libyaml's emitter when present: same YAML, several times faster)."""
-    dumper = getattr(yaml, "CSafeDumper", yaml.SafeDumper)
-    atomic_write_text(path, yaml.dump(data, Dumper=dumper, sort_keys=False, default_flow_style=None,
+    """Safe YAML (libyaml's emitter when present: same YAML, several times faster), no aliases."""
+    atomic_write_text(path, yaml.dump(data, Dumper=_NoAliasDumper, sort_keys=False, default_flow_style=None,
                                       allow_unicode=True))
 
 

@@ -86,6 +86,9 @@ def _check_ply(path: Path, head: bytes) -> int:
     if n < 0:
         raise SessionError(path, f"PLY header: negative vertex count {n}")
     size = path.stat().st_size
+    for name, count, _ in elements:  # every row of every element takes at least one byte
+        if count < 0 or count > size:
+            raise SessionError(path, f"PLY header claims {count} '{name}' rows, more than the file's {size} bytes")
     if fmt != "ascii":
         need = header_len
         for name, count, props in elements:  # fixed-size elements up to (and including) the vertices
@@ -128,13 +131,14 @@ def _check_pcd(path: Path, head: bytes) -> int:
         names = fields["FIELDS"]
         sizes = [int(v) for v in fields.get("SIZE", ["4"] * len(names))]
         counts = [int(v) for v in fields.get("COUNT", ["1"] * len(names))]
-        if "POINTS" in fields:
-            n = int(fields["POINTS"][0])
-        else:
-            n = int(fields["WIDTH"][0]) * int(fields.get("HEIGHT", ["1"])[0])
+        wh = int(fields["WIDTH"][0]) * int(fields.get("HEIGHT", ["1"])[0]) if "WIDTH" in fields else None
+        n = int(fields["POINTS"][0]) if "POINTS" in fields else wh
+        if n is None or (wh is not None and wh != n):
+            raise ValueError("WIDTH x HEIGHT and POINTS disagree")
     except (KeyError, ValueError, IndexError):
         raise SessionError(path, "PCD header is malformed (FIELDS/SIZE/COUNT/POINTS)") from None
-    if len(sizes) != len(names) or len(counts) != len(names) or n < 0:
+    if len(sizes) != len(names) or len(counts) != len(names) or n < 0 or \
+            any(s not in (1, 2, 4, 8) for s in sizes) or any(c < 1 or c > 4096 for c in counts):
         raise SessionError(path, "PCD header is malformed (FIELDS, SIZE and COUNT disagree)")
     if not {"x", "y", "z"} <= set(names):
         raise SessionError(path, f"PCD file has no x y z fields (fields: {' '.join(names)})")
@@ -151,6 +155,10 @@ def _check_pcd(path: Path, head: bytes) -> int:
         if len(sizes_raw) < 8:
             raise SessionError(path, "file is truncated: compressed PCD data is missing")
         compressed = int.from_bytes(sizes_raw[:4], "little")
+        uncompressed = int.from_bytes(sizes_raw[4:], "little")
+        if uncompressed != n * sum(s * c for s, c in zip(sizes, counts)):
+            raise SessionError(path, f"PCD header is corrupt: {n} points need {n * sum(s * c for s, c in zip(sizes, counts))} "
+                                     f"bytes unpacked, the data block says {uncompressed}")
         if size < header_len + 8 + compressed:
             raise SessionError(path, f"file is truncated: {size} bytes, its header needs at least {header_len + 8 + compressed}")
     elif kind == "ascii":

@@ -7,13 +7,16 @@ raises :class:`SessionError` naming the file and the problem.
 from __future__ import annotations
 
 import io
+import itertools
 import re
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from calib_core.errors import SessionError
+from calib_core.io.las_header import MAX_CLOUD_POINTS, check_las_header, check_npy_header
 
 MAX_CLOUD_BYTES = 2 * 2**30  # a sonar scan is tens of MB; anything this big is a wrong file
 CLOUD_SUFFIXES = (".ply", ".pcd", ".xyz", ".csv", ".txt", ".npy", ".las", ".laz")
@@ -53,8 +56,12 @@ def load_cloud(path: str | Path, allow_nonfinite: bool = False) -> Cloud:
         pts, inten = _READERS[suffix](path)
     except SessionError:
         raise
+    except MemoryError:
+        raise SessionError(path, "cannot read point cloud: it needs more memory than this machine has "
+                                 "(corrupt header, or a far too large cloud)") from None
     except Exception as e:  # corrupt or truncated file: name it, no traceback
-        raise SessionError(path, f"cannot read point cloud ({type(e).__name__}: {e})") from None
+        detail = str(e).strip().splitlines()[0][:120] if str(e).strip() else "no detail"
+        raise SessionError(path, f"cannot read point cloud ({type(e).__name__}: {detail})") from None
     pts = np.asarray(pts, dtype=np.float64)
     if pts.ndim != 2 or pts.shape[1] != 3:
         raise SessionError(path, f"expected N x 3 points, got shape {pts.shape}")
@@ -153,6 +160,12 @@ def _read_open3d(path: Path):
     n_declared = check_cloud_header(path)
     if n_declared == 0:
         raise SessionError(path, "point cloud holds no points (its header declares 0)")
+    if n_declared > MAX_CLOUD_POINTS:
+        raise SessionError(path, f"header claims {n_declared} points: more than the {MAX_CLOUD_POINTS} this tool loads")
+    if _is_ascii(path):  # open3d fills the rows after a bad one with uninitialised memory
+        from calib_core.io.cloud_ascii import read_ascii_pcd, read_ascii_ply
+
+        return (read_ascii_ply if path.suffix.lower() == ".ply" else read_ascii_pcd)(path)
     with o3d.utility.VerbosityContextManager(o3d.utility.VerbosityLevel.Error):
         pcd = o3d.t.io.read_point_cloud(str(path))
     if "positions" not in pcd.point or len(pcd.point.positions) == 0:
@@ -169,15 +182,20 @@ def _read_open3d(path: Path):
     return pts, inten
 
 
+def _is_ascii(path: Path) -> bool:
+    """True for an ASCII PLY or ASCII PCD (headers already checked)."""
+    with open(path, "rb") as f:
+        head = f.read(65536)
+    if path.suffix.lower() == ".ply":
+        return re.search(rb"^format\s+ascii\b", head, re.M) is not None
+    return re.search(rb"^DATA[ \t]+ascii\b", head, re.M | re.I) is not None
+
+
 def _read_text(path: Path):
     fast = _read_text_fast(path)
     if fast is not None:
         return fast
-    try:
-        text = path.read_text(encoding="utf-8-sig", errors="strict")
-    except UnicodeDecodeError:
-        raise SessionError(path, "not a text point cloud (invalid UTF-8: binary data?)") from None
-    return _read_text_rows(path, text)
+    return _read_text_rows(path)
 
 
 def _read_text_fast(path: Path):
@@ -210,17 +228,42 @@ def _read_text_fast(path: Path):
         f.seek(offset)
         with io.TextIOWrapper(f, encoding="utf-8", errors="strict", newline=None) as tf:
             try:
-                arr = np.loadtxt(tf, delimiter=delim, comments="#", ndmin=2, dtype=np.float64)
+                with warnings.catch_warnings():  # numpy notes that blank lines do not count as rows
+                    warnings.simplefilter("ignore", UserWarning)
+                    arr = np.loadtxt(tf, delimiter=delim, comments="#", ndmin=2, dtype=np.float64,
+                                     max_rows=MAX_CLOUD_POINTS + 1)
             except (ValueError, UnicodeDecodeError):
                 return None
     if arr.ndim != 2 or arr.shape[1] < 3 or len(arr) == 0:
         return None
+    if len(arr) > MAX_CLOUD_POINTS:
+        raise SessionError(path, f"more than {MAX_CLOUD_POINTS} points: more than this tool loads")
     return arr[:, :3], (arr[:, 3] if arr.shape[1] >= 4 else None)
 
 
-def _read_text_rows(path: Path, text: str):
+_MAX_TEXT_LINE = 65536
+
+
+def _text_lines(path: Path):
+    """(line number, text) of a text cloud, streamed; refuses binary data and endless lines."""
+    with open(path, "rb") as f:
+        for lineno in itertools.count(1):
+            raw = f.readline(_MAX_TEXT_LINE)
+            if not raw:
+                return
+            if len(raw) == _MAX_TEXT_LINE and not raw.endswith(b"\n"):
+                raise SessionError(path, f"line {lineno} is longer than {_MAX_TEXT_LINE} bytes (not a text point cloud)")
+            try:
+                yield lineno, raw.decode("utf-8-sig" if lineno == 1 else "utf-8")
+            except UnicodeDecodeError:
+                raise SessionError(path, "not a text point cloud (invalid UTF-8: binary data?)") from None
+
+
+def _read_text_rows(path: Path):
     rows = []
-    for lineno, line in enumerate(text.splitlines(), 1):
+    for lineno, line in _text_lines(path):
+        if len(rows) > MAX_CLOUD_POINTS:
+            raise SessionError(path, f"more than {MAX_CLOUD_POINTS} points: more than this tool loads")
         s = line.strip()
         if not s or s.startswith("#"):
             continue
@@ -242,6 +285,7 @@ def _read_text_rows(path: Path, text: str):
 
 
 def _read_npy(path: Path):
+    check_npy_header(path)
     arr = np.load(path, allow_pickle=False)
     if arr.ndim != 2 or arr.shape[1] not in (3, 4) or not np.issubdtype(arr.dtype, np.number):
         raise SessionError(path, f"expected an (N,3) or (N,4) number array, got {arr.dtype} {arr.shape}")
@@ -251,8 +295,11 @@ def _read_npy(path: Path):
 def _read_las(path: Path):
     import laspy
 
+    n_declared = check_las_header(path)
     las = laspy.read(str(path))
     pts = np.column_stack([np.asarray(las.x), np.asarray(las.y), np.asarray(las.z)])
+    if len(pts) != n_declared:
+        raise SessionError(path, f"file is truncated or corrupt: header says {n_declared} points, read {len(pts)}")
     inten = np.asarray(las.intensity, dtype=np.float64) if "intensity" in las.point_format.dimension_names else None
     return pts, inten
 

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import re
+import unicodedata
 from pathlib import Path
 
 import cv2
@@ -9,8 +11,11 @@ import numpy as np
 import yaml
 
 from calib_core.camera import CameraModel
-from calib_core.errors import SessionError
+from calib_core.errors import SessionError, short_repr
 from calib_core.io.atomic import atomic_write_text
+from calib_core.io.yaml_safe import parse_yaml_checked
+
+MAX_INTRINSICS_BYTES = 1024 * 1024
 
 
 def load_intrinsics(path: str | Path) -> CameraModel:
@@ -18,7 +23,13 @@ def load_intrinsics(path: str | Path) -> CameraModel:
     path = Path(path)
     if not path.is_file():
         raise SessionError(path, "intrinsics file not found")
-    raw = path.read_bytes()
+    try:
+        size = path.stat().st_size
+        if size > MAX_INTRINSICS_BYTES:
+            raise SessionError(path, f"intrinsics file is {size / 1e6:.1f} MB: an intrinsics file is a few kB")
+        raw = path.read_bytes()
+    except OSError as e:
+        raise SessionError(path, f"cannot read intrinsics file: {e.strerror or type(e).__name__}") from None
     if not raw.strip():
         raise SessionError(path, "intrinsics file is empty")
     try:
@@ -27,22 +38,12 @@ def load_intrinsics(path: str | Path) -> CameraModel:
         raise SessionError(path, "not a text file (invalid UTF-8): expected ROS camera_info YAML") from None
     head = text.lstrip()
     if head.startswith("%YAML:") or "!!opencv-matrix" in text or head.startswith("<?xml"):
+        check_storage_depth(path, text)  # OpenCV's parsers recurse on the C stack: a deep file crashes them
         return _load_opencv_storage(path)
-    try:
-        data = yaml.load(text, Loader=getattr(yaml, "CSafeLoader", yaml.SafeLoader))  # libyaml: same YAML, faster
-    except yaml.YAMLError as e:
-        raise SessionError(path, f"invalid YAML: {_yaml_where(e)}") from None
-    except RecursionError:
-        raise SessionError(path, "invalid YAML: nested too deeply") from None
+    data = parse_yaml_checked(path, text)
     if not isinstance(data, dict):
         raise SessionError(path, "expected a ROS camera_info mapping (image_width, camera_matrix, ...)")
     return _from_ros(path, data)
-
-
-def _yaml_where(e: yaml.YAMLError) -> str:
-    mark = getattr(e, "problem_mark", None)
-    what = getattr(e, "problem", None) or str(e).splitlines()[0]
-    return f"{what} at line {mark.line + 1}, column {mark.column + 1}" if mark else what
 
 
 def _matrix(path: Path, data: dict, key: str, size: int | tuple[int, ...]) -> np.ndarray:
@@ -71,6 +72,18 @@ def _check_K(path: Path, K: np.ndarray, w: int, h: int) -> None:
         raise SessionError(path, f"image size {w} x {h} is not plausible (1 to 100000 pixels a side)")
 
 
+def _camera_name(path: Path, value) -> str:
+    """camera_name: short text (a number is accepted as its text); never str() of a tree."""
+    if value is None or value == "":
+        return path.stem
+    if isinstance(value, bool) or not isinstance(value, (str, int, float)):
+        raise SessionError(path, f"camera_name must be text, got a {type(value).__name__}")
+    text = value if isinstance(value, str) else repr(value)
+    if len(text) > 200 or any(unicodedata.category(ch) in ("Cc", "Cf") for ch in text):
+        raise SessionError(path, "camera_name must be one line of at most 200 characters (no control characters)")
+    return text
+
+
 def _from_ros(path: Path, data: dict) -> CameraModel:
     try:
         w, h = int(data["image_width"]), int(data["image_height"])
@@ -82,16 +95,52 @@ def _from_ros(path: Path, data: dict) -> CameraModel:
             isinstance(data["image_height"], (bool, float)) and data["image_height"] != h:
         raise SessionError(path, "image_width and image_height must be whole numbers")
     K = _matrix(path, data, "camera_matrix", 9).reshape(3, 3)
-    model = str(data.get("distortion_model", "plumb_bob"))
-    if model not in ("plumb_bob", "rational_polynomial") and model:
-        raise SessionError(path, f"distortion_model '{model}' is not supported (use plumb_bob)")
+    model = data.get("distortion_model", "plumb_bob")
+    if model not in ("plumb_bob", "rational_polynomial", "", None):
+        raise SessionError(path, f"distortion_model {short_repr(model)} is not supported (use plumb_bob)")
     dist = _matrix(path, data, "distortion_coefficients", (4, 5, 8)) if "distortion_coefficients" in data else np.zeros(5)
     if dist.size == 8:
         if np.any(dist[5:] != 0):
             raise SessionError(path, "rational_polynomial with k4..k6 != 0 is not supported (use plumb_bob)")
         dist = dist[:5]
     _check_K(path, K, w, h)
-    return CameraModel(w, h, K, dist, name=str(data.get("camera_name", path.stem)))
+    return CameraModel(w, h, K, dist, name=_camera_name(path, data.get("camera_name")))
+
+
+MAX_STORAGE_DEPTH = 32
+_XML_TAG = re.compile(r"<(/?)[A-Za-z_][^<>]*?(/?)>")
+
+
+def check_storage_depth(path: Path, text: str) -> None:
+    """Refuse an OpenCV FileStorage text nested deeper than MAX_STORAGE_DEPTH (XML tags, or
+    YAML flow brackets plus block indentation and '- ' markers), before OpenCV parses it."""
+    depth = 0
+    if text.lstrip().startswith("<"):
+        for m in _XML_TAG.finditer(text):
+            if m.group(2):
+                continue  # <empty/>
+            depth += -1 if m.group(1) else 1
+            if depth > MAX_STORAGE_DEPTH:
+                break
+    else:
+        flow, indents = 0, []
+        for line in text.splitlines():
+            body = line.lstrip(" ")
+            if not body or body.startswith("#"):
+                continue
+            indent = len(line) - len(body)
+            while indents and indents[-1] >= indent:
+                indents.pop()
+            indents.append(indent)
+            dashes = len(re.match(r"(-\s+)*", body).group(0).split("-")) - 1
+            for ch in body:
+                flow += 1 if ch in "[{" else -1 if ch in "]}" else 0
+                depth = max(depth, flow + len(indents) + dashes)
+            depth = max(depth, len(indents) + dashes)
+            if depth > MAX_STORAGE_DEPTH:
+                break
+    if depth > MAX_STORAGE_DEPTH:
+        raise SessionError(path, f"cannot parse OpenCV FileStorage file: nested more than {MAX_STORAGE_DEPTH} levels deep")
 
 
 def _load_opencv_storage(path: Path) -> CameraModel:

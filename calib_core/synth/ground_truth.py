@@ -32,7 +32,7 @@ from pathlib import Path
 
 import numpy as np
 
-from calib_core.session import read_yaml_mapping
+from calib_core.io.yaml_safe import read_yaml_mapping
 
 GT_FORMAT = "sonar-camera-ground-truth/1"
 GT_FILE = "ground_truth.yaml"
