@@ -82,6 +82,9 @@ class Workbench:
         self.fused = FusedPanel(self)
         self.session_panel = SessionPanel(self)
         self.plan = PlanPanel(self, self.tab_plan)
+        from app.motion_panel import MotionPanel  # the target-motion track of an imported session
+
+        self.motion_panel = MotionPanel(self)
 
         self.refresher.on("session", self._on_session)
         self.refresher.on("after-session", self._after_session)

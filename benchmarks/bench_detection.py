@@ -173,7 +173,7 @@ def main(argv=None) -> int:
             if det_h.found:
                 r["hough"].append(float(np.linalg.norm(det_h.center_uv_px - truth)))
         else:
-            r["two"] += det_e.reason == "two candidates"
+            r["two"] += det_e.reason.startswith("two round objects")
             misses.append(f"{label} [{group[1]}/{group[2]}]: {det_e.reason}")
 
     for preset, seed in runs:

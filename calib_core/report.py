@@ -24,6 +24,7 @@ from calib_core import __version__
 from calib_core.errors import SessionError
 from calib_core.markup import escape_html
 from calib_core.report_captures import CaptureView, ReportOptions, calibrated_T, capture_view, range_scale
+from calib_core.report_motion import motion_section
 from calib_core.report_svg import bar_chart, scatter_residuals, sigma_chart
 
 __all__ = ["ReportOptions", "build_report", "write_report"]
@@ -208,6 +209,8 @@ def _detections(session, detections, views: list[CaptureView]) -> str:
             else:
                 cs = "(" + ", ".join(f"{x:.1f}" for x in c) + ") px" if isinstance(c, list) else ""
             score = f" score {_fmt(e.get('score'))}" if isinstance(e, dict) and "score" in e else ""
+            if isinstance(e, dict) and c is None and st != "rejected":
+                score = f": {e.get('reason') or 'not found'}"  # a miss says why, not "score 0.00"
             thumb = f"<img src='{v.thumbs[s]}' alt='{_e(v.id)} {_e(s)}' width='160'><br>" if s in v.thumbs else ""
             res = v.residual_px.get(s)
             res_s = f"<br>residual {math.hypot(*res):.2f} px" if res else ""
@@ -290,7 +293,7 @@ def build_report(session, calibration: dict | None, detections: dict | None = No
              "run 'sonarcal detect' or review in the workbench to record them).</p>" if from_cal else
              "" if detections else "<p class='warn'>No detections.yaml yet: run 'sonarcal detect' (or review in the "
                                    "workbench) to record detections and their status history.</p>",
-             _detections(session, detections, views),
+             _detections(session, detections, views), motion_section(session),
              "<h2>Segmentation by the reprojected cloud (paper Fig. 3)</h2>", seg,
              "<h2>Cloud coloured from the images (paper Figs. 4-5)</h2>", col]
     return (f"<!DOCTYPE html><html lang='en'><head><meta charset='utf-8'><title>sonarcal report: {_e(session.name)}</title>"

@@ -17,6 +17,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from calib_core import fusion
+from calib_core.detect.reasons import entry_problem, residual_problem
 from calib_core.errors import SessionError
 from calib_core.geometry import look_at_T_cam_world
 from calib_core.camera import CameraModel
@@ -109,6 +110,8 @@ def capture_view(session, cap, detections: dict, calibration: dict | None, model
         P = None
         view.problems.append(str(e))
     sonar_c = _centre(dets.get("sonar"))
+    if entry_problem("sonar", dets.get("sonar")):
+        view.problems.append(entry_problem("sonar", dets.get("sonar")))
     if P is not None and sonar_c is not None:
         X = sonar_c / s
         view.thumbs["sonar"] = data_uri(sonar_thumbnail(P, X, session.sphere_radius_m, opts.thumb_px), "png")
@@ -136,6 +139,9 @@ def capture_view(session, cap, detections: dict, calibration: dict | None, model
                 view.reprojected_uv[cam] = [float(v) for v in reproj]
                 if det_c is not None:
                     view.residual_px[cam] = [float(v) for v in reproj - det_c]
+        for why in (entry_problem(cam, entry), residual_problem(cam, view.residual_px.get(cam))):
+            if why:
+                view.problems.append(why)
         drawn = fusion.draw_detection(img, det_c, entry.get("ellipse_px"), reproj, labels=False)
         half = 0.06 * model.width_px
         if isinstance(entry.get("radius_px"), (int, float)) and entry["radius_px"] > 0:

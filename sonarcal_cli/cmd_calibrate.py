@@ -47,6 +47,7 @@ def run(args) -> int:
 
 
 def print_report(cal: dict, quiet: bool = False) -> None:
+    from calib_core.detect.reasons import count_reasons
     from calib_core.solve.summary import pose_rows, residual_rows, scale_line, table_i_rows
 
     console.print(f"[bold]Calibration of {cal['session']}[/bold]")
@@ -61,6 +62,11 @@ def print_report(cal: dict, quiet: bool = False) -> None:
         for o in cal["cameras"][cam].get("outliers", []):
             for why in o["reasons"]:
                 console.print(f"  {cam} {o['capture']}: {why}", style="yellow", markup=False)
+    for cam, c in (cal.get("cameras") or {}).items():
+        skipped = c.get("skipped") or {}
+        if skipped:
+            console.print(f"{cam}: {len(skipped)} capture(s) not used: {count_reasons(skipped.values())}",
+                          style="yellow", markup=False)
     ti = table_i_rows(cal)
     if ti:
         console.print(table("Table I (independent solves; lengths in mm)", *ti))

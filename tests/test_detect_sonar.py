@@ -290,11 +290,13 @@ def test_a_decoy_of_another_size_is_ignored_and_a_wrong_diameter_is_reported():
     # session.yaml says 0.22 m but the sphere is 0.26 m: refused, and the reason says so
     P2 = simulate([(c, 0.13)], n_spurious=500, seed=7)
     det2 = detect_sphere_in_cloud(P2, R_TRUE)
-    assert not det2.found and "another size" in det2.reason and "0.260" in det2.reason
+    assert not det2.found and "another size" in det2.reason and "0.220 m" in det2.reason
+    assert f"{det2.extras['candidate_diameter_m']:.3f} m across" in det2.reason
     assert abs(det2.extras["candidate_diameter_m"] - 0.26) < 0.006
     # ... unless the operator picks it: then it is fitted with the diameter it shows
     picked = detect_sphere_in_cloud(P2, R_TRUE, seed_center_m=det2.extras["candidate_center"])
-    assert picked.found and "warning" in picked.extras and "0.260" in picked.extras["warning"]
+    assert picked.found and "warning" in picked.extras
+    assert f"{picked.diameter_m:.3f} m across" in picked.extras["warning"]
     assert abs(picked.diameter_m - 0.26) < 0.006
     assert np.linalg.norm(picked.center_sonar_m - c) < 3e-3
 

@@ -9,8 +9,9 @@ Main entry: :func:`detect_sphere_in_image`. Steps:
    silhouette cone in undistorted normalised coordinates (:mod:`.image_fit`, :mod:`.image_cone`);
    the sphere centre's perspective projection follows exactly from the cone axis (then the lens
    distortion gives raw pixels), and the known radius gives the range;
-3. a verdict: one good candidate -> found; none -> "no sphere" / "sphere cut by the image
-   border" / ...; two good ones -> "two candidates" (never a guess).
+3. a verdict: one good candidate -> found; none -> the reason ("no round outline" / "sphere cut by the image
+   border" / "outline 40 % hidden or too faint at (u, v)" ...); two good ones -> "two round
+   objects: (u, v) and (u, v)" (never a guess).
 
 ``method="hough-circle"`` is the paper's baseline (Canny + Hough circle, circle centre) on the
 same candidate region, for comparison.
@@ -27,7 +28,10 @@ import numpy as np
 
 from calib_core.camera import CameraModel
 from calib_core.detect.image_fit import CandidateFit, refine_candidate
+from calib_core.detect.image_fit import CLEAN_RMS_FRAC, CLEAN_RMS_PX
 from calib_core.detect.image_hough import hough_circle
+from calib_core.detect.image_score import features, probability
+from calib_core.detect.image_votes import candidates_by_votes
 from calib_core.detect.image_region import (Candidate, candidates_from_background,
                                             candidates_single_frame, choose_scale, downscale,
                                             radius_bounds_px)
@@ -97,6 +101,69 @@ def _not_found(reason: str, method: str, **extras) -> ImageDetection:
     return ImageDetection(found=False, reason=reason, method=method, extras=extras)
 
 
+NO_OUTLINE = "no round outline"
+CUT = "sphere cut by the image border"
+
+
+def two_objects_reason(centres_uv_px) -> str:
+    """'two round objects: (u, v) and (u, v)' (the operator-readable refusal)."""
+    pts = " and ".join(f"({c[0]:.0f}, {c[1]:.0f})" for c in centres_uv_px)
+    return f"two round objects: {pts}"
+
+
+def _refusal(fits, cands, method) -> ImageDetection:
+    """Why no candidate was accepted, in an operator's words: cut by the border, the best
+    round outline's problem (hidden part, not round, inside a larger object), or none."""
+    cut = [f for c, f in fits if f.reason == CUT]
+    if cut:
+        # the partial fit is often still good: keep it for an operator to confirm
+        best = max(cut, key=lambda f: f.support)
+        return _not_found(CUT, method, candidates=len(cands),
+                          partial_center_uv_px=[round(float(v), 2) for v in best.centre_uv_px])
+    if any(c.touches_border and c.source == "background" and f.fit is None for c, f in fits):
+        return _not_found(CUT, method, candidates=len(cands))
+    # a clean round outline, only partly visible, is worth naming; outlines that are not round
+    # or sit inside something larger are clutter (listed in the extras, not in the reason)
+    near = [f for _, f in fits if f.fit is not None and f.reason.startswith("outline ") and "hidden" in f.reason]
+    if near:
+        best = max(near, key=lambda f: f.support)
+        u, v = best.centre_uv_px
+        return _not_found(f"{best.reason} at ({u:.0f}, {v:.0f})", method, candidates=len(cands),
+                          rejected=_rejected(fits))
+    return _not_found(NO_OUTLINE, method, candidates=len(cands), rejected=_rejected(fits))
+
+
+def _stronger_refused(fits, best):
+    for _, f in fits:
+        if (not f.ok and f.credible and f.silhouette_px is not None
+                and np.hypot(*(f.centre_uv_px - best.centre_uv_px)) > _mean_radius(best.silhouette_px)
+                and _evidence(f) >= 0.5 * _evidence(best)):
+            return f
+    return None
+
+
+def _rejected(fits) -> list[str]:
+    """The candidates looked at and why each was refused ("<reason> at (u, v)")."""
+    out = []
+    for _, f in fits:
+        if f.reason and f.centre_uv_px is not None:
+            out.append(f"{f.reason} at ({f.centre_uv_px[0]:.0f}, {f.centre_uv_px[1]:.0f})")
+        elif f.reason:
+            out.append(f.reason)
+    return out[:6]
+
+
+def _evidence(f) -> float:
+    """Weight of a fitted round outline: its score times the outline length it explains (px).
+    Clutter makes small round outlines far more often than large ones, so a small round
+    thing (a knob, a lamp) does not make a clear, large sphere outline ambiguous."""
+    return f.score * f.support * _perimeter(f.silhouette_px)
+
+
+def _perimeter(sil: np.ndarray) -> float:
+    return float(np.linalg.norm(np.diff(np.vstack([sil, sil[:1]]), axis=0), axis=1).sum())
+
+
 def _ellipse_px(sil: np.ndarray) -> tuple:
     """((cx, cy), (major, minor) full axis lengths, angle_deg) of an outline (OpenCV style)."""
     (cx, cy), (a, b), ang = cv2.fitEllipse(sil.astype(np.float32))
@@ -112,12 +179,48 @@ def _inside(uv: np.ndarray, outline: np.ndarray) -> bool:
     return cv2.pointPolygonTest(outline.astype(np.float32), (float(uv[0]), float(uv[1])), False) > 0
 
 
+def _refine_all(img, cam, todo, sphere_radius_m, a_range, bg, rng, hinted: bool):
+    """Refine candidates in order; stop early when what is left cannot matter."""
+    fits: list[tuple[Candidate, CandidateFit]] = []
+    for c in todo:
+        ok = [cf for cf in fits if cf[1].ok]
+        same = [cf[0].strength for cf in ok if cf[0].source == c.source]  # comparable strengths
+        if ok and (hinted or (same and c.strength < 0.12 * max(same))):
+            break  # found, and what is left is far too weak to be a sphere (an open mesh
+            # target has much less contrast than a solid decoy: keep checking those)
+        if ok and _evidence_bound(c) < 0.5 * max(_evidence(f) for _, f in ok):
+            continue  # even at its best this one could not make the found one ambiguous
+        fits.append((c, refine_candidate(img, cam, c, sphere_radius_m, a_range, bg, rng)))
+    return fits
+
+
+def _evidence_bound(c: Candidate) -> float:
+    """Most evidence (:func:`_evidence`) a candidate's outline could give: its full perimeter,
+    or for a vote candidate 1.5x the outline share that voted (votes undercount, never by half)."""
+    share = min(1.0, 1.5 * c.strength / 100.0) if c.source == "votes" else 1.0
+    return share * 2 * np.pi * 1.3 * c.radius_px
+
+
+def _merge_candidates(first: list[Candidate], then: list[Candidate]) -> list[Candidate]:
+    """Round-outline votes first (they place centre and size well), then the region-contrast
+    candidates that are not the same object."""
+    out = list(first)
+    for c in then:
+        if not any(np.hypot(*(c.centre_px - o.centre_px)) < 0.5 * max(c.radius_px, o.radius_px)
+                   and 0.6 < c.radius_px / o.radius_px < 1.7 for o in out):
+            out.append(c)
+    return out
+
+
 def _hint_candidates(cands, hint_uv, hint_r, r_bounds):
     hint = np.asarray(hint_uv, float)
     near = [c for c in cands if np.hypot(*(c.centre_px - hint)) < 1.25 * c.radius_px + 20]
     near.sort(key=lambda c: np.hypot(*(c.centre_px - hint)))
     r = hint_r if hint_r is not None else np.sqrt(r_bounds[0] * r_bounds[1])
     return near + [Candidate(hint, float(r), (float(r), float(r)), 0.0, False, 0.0, "hint")]
+
+
+FAINT_CONTRAST = 10.0  # grey levels: a background-difference outline this faint gets a second look
 
 
 def detect_sphere_in_image(image_rgb: np.ndarray, cam: CameraModel, sphere_radius_m: float,
@@ -132,7 +235,7 @@ def detect_sphere_in_image(image_rgb: np.ndarray, cam: CameraModel, sphere_radiu
         cam: intrinsics of the camera.
         sphere_radius_m: known sphere radius (m).
         background: (H,W,3) background model (:func:`background_model`), or the same wrapped by
-            :func:`prepare_background` (faster when reused), or None (single-frame fallback).
+            :func:`prepare_background` (faster when reused), or None (single-frame detection).
         method: "ellipse-exact" (default; exact projection of the centre from the silhouette
             cone) or "hough-circle" (the paper's Canny + Hough circle centre).
         hint_uv_px: optional (u, v) raw pixel an operator clicked near the sphere: candidates
@@ -140,12 +243,35 @@ def detect_sphere_in_image(image_rgb: np.ndarray, cam: CameraModel, sphere_radiu
         hint_radius_px: optional apparent radius (px) for the hint.
         range_limits_m: plausible camera-to-sphere distances (m); bound the apparent size.
         max_candidates: most candidates refined at full resolution (default 6 with a
-            background, 10 without: the single-frame detector ranks less reliably).
+            background, 10 without).
         seed: seed of the RANSAC sampling (results are deterministic for a seed).
 
     Returns:
         :class:`ImageDetection`; ``found`` False with ``reason`` when nothing trustworthy.
+        With a background, a miss or a faint outline (turbid water: the sphere differs little
+        from the background model) gets a second, single-frame look; the stronger is kept.
     """
+    kw = dict(method=method, hint_uv_px=hint_uv_px, hint_radius_px=hint_radius_px,
+              range_limits_m=range_limits_m, max_candidates=max_candidates, seed=seed)
+    det = _detect_once(image_rgb, cam, sphere_radius_m, background, **kw)
+    if background is None or (det.found and det.extras.get("edge_contrast", 0) >= FAINT_CONTRAST):
+        return det
+    guessed_cut = det.reason == CUT and "partial_center_uv_px" not in det.extras  # a blob at the border
+    if not det.found and not (det.reason == NO_OUTLINE or "hidden" in det.reason or guessed_cut):
+        return det  # a fitted cut outline, two round objects, bad input: say so
+    alone = _detect_once(image_rgb, cam, sphere_radius_m, None, **kw)
+    if alone.found and (not det.found or alone.score * alone.radius_px > det.score * det.radius_px):
+        alone.extras["background_used"] = False
+        return alone
+    return det
+
+
+def _detect_once(image_rgb: np.ndarray, cam: CameraModel, sphere_radius_m: float,
+                 background=None, method: str = "ellipse-exact", hint_uv_px=None,
+                 hint_radius_px: float | None = None,
+                 range_limits_m: tuple[float, float] = DEFAULT_RANGE_LIMITS_M,
+                 max_candidates: int | None = None, seed: int = 0) -> ImageDetection:
+    """One detection pass (arguments as :func:`detect_sphere_in_image`)."""
     t0 = time.perf_counter()
     if method not in METHODS:
         raise ValueError(f"unknown image detection method {method!r}; use one of {METHODS}")
@@ -174,12 +300,14 @@ def detect_sphere_in_image(image_rgb: np.ndarray, cam: CameraModel, sphere_radiu
         cands, _ = candidates_from_background(small, background.small(s), s, r_bounds)
     else:
         bg = None
-        cands = candidates_single_frame(small, s, r_bounds, max_candidates=12)
+        cands = candidates_by_votes(small, s, r_bounds, max_candidates=5)
+        if not cands:
+            cands = candidates_single_frame(small, s, r_bounds, max_candidates=12)
     if hint_uv_px is not None:
         cands = _hint_candidates(cands, hint_uv_px, hint_radius_px, r_bounds)
     t_region = time.perf_counter()
     if not cands:
-        return _not_found("no sphere", method, candidates=0)
+        return _not_found(NO_OUTLINE, method, candidates=0)
 
     rng = np.random.default_rng(seed)
     # candidates touching the border are tried last (a sphere there is cut anyway), at most 2
@@ -187,13 +315,16 @@ def detect_sphere_in_image(image_rgb: np.ndarray, cam: CameraModel, sphere_radiu
         max_candidates = 6 if background is not None else 10
     todo = ([c for c in cands if not c.touches_border][:max_candidates]
             + [c for c in cands if c.touches_border][:2])
-    fits: list[tuple[Candidate, CandidateFit]] = []
-    for c in todo:
-        ok = [cf for cf in fits if cf[1].ok]
-        if ok and (hint_uv_px is not None or c.strength < 0.12 * max(cf[0].strength for cf in ok)):
-            break  # found, and what is left is far too weak to be a sphere (an open mesh
-            # target has much less contrast than a solid decoy: keep checking those)
-        fits.append((c, refine_candidate(img, cam, c, sphere_radius_m, a_range, bg, rng)))
+    fits = _refine_all(img, cam, todo, sphere_radius_m, a_range, bg, rng, hint_uv_px is not None)
+    if hint_uv_px is None and not any(f.ok for _, f in fits):
+        # no round outline among the votes: region contrast (an open mesh, a low-contrast
+        # outline) as the second cue
+        if bg is None:
+            more = _merge_candidates(cands, candidates_single_frame(small, s, r_bounds, max_candidates=12))[len(cands):]
+            cands = cands + more
+            fits += _refine_all(img, cam, ([c for c in more if not c.touches_border][:max_candidates]
+                                           + [c for c in more if c.touches_border][:2]),
+                                sphere_radius_m, a_range, None, rng, False)
     fitted = [(c, f) for c, f in fits if f.credible]
     good: list[tuple[Candidate, CandidateFit]] = []
     for c, f in sorted(fits, key=lambda cf: -cf[1].score):
@@ -210,28 +341,27 @@ def detect_sphere_in_image(image_rgb: np.ndarray, cam: CameraModel, sphere_radiu
             good.append((c, f))
     timing = {"region_ms": round(1e3 * (t_region - t0), 2)}
     if not good:
-        cut = [f for c, f in fits if f.reason == "sphere cut by the image border"]
-        if cut:
-            # the partial fit is often still good: keep it for an operator to confirm
-            best = max(cut, key=lambda f: f.support)
-            return _not_found("sphere cut by the image border", method, candidates=len(cands),
-                              partial_center_uv_px=[round(float(v), 2) for v in best.centre_uv_px])
-        if any(c.touches_border and c.source == "background" and f.fit is None for c, f in fits):
-            reason = "sphere cut by the image border"
-        else:
-            reason = "no sphere"
-        return _not_found(reason, method, candidates=len(cands),
-                          rejected=sorted({f.reason for _, f in fits if f.reason}))
-    good.sort(key=lambda cf: -cf[1].score)
-    if len(good) > 1 and hint_uv_px is None and good[1][1].score >= 0.5 * good[0][1].score:
+        return _refusal(fits, cands, method)
+    good.sort(key=lambda cf: -_evidence(cf[1]))
+    # a clean round outline refused only for being cut by the border (or partly hidden) that
+    # outweighs the best accepted one: the accepted one is likely clutter, the sphere is there
+    blocker = _stronger_refused(fits, good[0][1])
+    if blocker is not None and hint_uv_px is None:
+        u, v = blocker.centre_uv_px
+        return _not_found(blocker.reason, method, candidates=len(cands),
+                          partial_center_uv_px=[round(float(u), 2), round(float(v), 2)],
+                          rejected=_rejected(fits))
+    if len(good) > 1 and hint_uv_px is None and _evidence(good[1][1]) >= 0.5 * _evidence(good[0][1]):
         # both kept (u, v, range_m): a caller with another clue (the sonar's range, a click)
         # can choose; the detector does not guess
-        return _not_found("two candidates", method, candidates=len(cands), two_candidates=[
+        return _not_found(two_objects_reason([f.centre_uv_px for _, f in good[:3]]), method,
+                          candidates=len(cands), two_candidates=[
             [round(float(f.centre_uv_px[0]), 2), round(float(f.centre_uv_px[1]), 2), round(f.range_m, 4)]
             for _, f in good[:3]])
     cand, f = good[0]
     extras = dict(f.extras)
     extras["candidates"] = len(cands)
+    extras["runner_up_ratio"] = round(_evidence(good[1][1]) / max(_evidence(f), 1e-9), 4) if len(good) > 1 else 0.0
     apparent_r = _mean_radius(f.silhouette_px)
     rng_sigma = float(sphere_radius_m * np.cos(f.fit.a_rad) / np.sin(f.fit.a_rad) ** 2
                       * np.sqrt(f.fit.cov_params[2, 2]))
@@ -239,8 +369,10 @@ def detect_sphere_in_image(image_rgb: np.ndarray, cam: CameraModel, sphere_radiu
     # the cone's half-angle is what the camera measures; range_m = radius / sin(angle), so a
     # wrong diameter in session.yaml shows up as a range that disagrees with the sonar's
     extras["angular_radius_deg"] = round(float(np.degrees(f.fit.a_rad)), 5)
+    extras["fit_quality"] = round(f.score, 4)
+    score = probability(features(extras, apparent_r, max(CLEAN_RMS_PX, CLEAN_RMS_FRAC * apparent_r)), f.score)
     det = ImageDetection(found=True, center_uv_px=f.centre_uv_px, cov_uv_px2=f.cov_uv_px2,
-                         score=f.score, ellipse_px=_ellipse_px(f.silhouette_px),
+                         score=score, ellipse_px=_ellipse_px(f.silhouette_px),
                          radius_px=apparent_r, range_m=f.range_m, method=method, extras=extras)
     if not (0.8 * d_min <= f.range_m <= 1.25 * d_max):
         return _not_found("apparent size outside the plausible range", method)

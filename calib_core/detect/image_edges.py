@@ -51,7 +51,8 @@ def pick_edges(t_px: np.ndarray, g: np.ndarray, rule: str, min_strength: float,
         t_px: (M,) offsets, evenly spaced.
         g: (K, M) gradient magnitude.
         rule: "outermost" (the last local maximum above ``min_strength``; for the first pass,
-            where texture inside the sphere also makes edges) or "nearest" (the local maximum
+            where texture inside the sphere also makes edges), "strongest" (the highest local
+            maximum; for a candidate whose size is known roughly, in clutter) or "nearest" (the local maximum
             above ``min_strength`` closest to ``target_px``; for the refinement pass).
         min_strength: scalar or (K,) threshold.
         target_px: (K,) expected offsets for "nearest" (default 0).
@@ -66,6 +67,9 @@ def pick_edges(t_px: np.ndarray, g: np.ndarray, rule: str, min_strength: float,
     peak[:, 1:-1] = (g[:, 1:-1] >= g[:, :-2]) & (g[:, 1:-1] > g[:, 2:]) & (g[:, 1:-1] >= thr)
     if rule == "outermost":
         idx = np.where(peak, np.arange(M)[None, :], -1).max(axis=1)
+    elif rule == "strongest":
+        gp = np.where(peak, g, -1.0)
+        idx = np.where(peak.any(axis=1), gp.argmax(axis=1), -1)
     else:
         tgt = np.zeros(K) if target_px is None else np.asarray(target_px, float)
         dist = np.where(peak, np.abs(t_px[None, :] - tgt[:, None]), np.inf)

@@ -16,13 +16,19 @@ outside the true silhouette, nearer than the surface along their centre line: th
 bigger and closer. Fitting ``c`` with this model removes that bias; the naive fits (Euclidean
 distance to a sphere of known or free radius) are kept as baselines.
 
+The same detector serves any range sensor whose returns start at the frame origin: with a
+beam width of 0 (a LiDAR, an RGB-D camera) the cone model is the plain first-return model.
+
 Pipeline: coarse candidates on a thinned, voxelised cloud without its large planes, ranked
 and pre-screened (:mod:`.sonar_search`); the best few are re-fitted at full resolution inside
-a crop with the cone model and judged (residual scale against the sonar noise measured on the
-planes, coverage of the expected disc of beams, purity of the returns inside it, returns all
-around it, diameter). More than one acceptable candidate gives "two candidates"; a sphere of
-another size is reported, not used. The effective beam width can be estimated per session
-with :func:`calib_core.detect.sonar_beam.estimate_beam_width_deg`.
+a crop with the cone model and judged (residual scale against the sensor noise measured on the
+planes, coverage of the part of the disc the beams sampled, purity of the returns inside it,
+whether a surface continues its outline over a long arc, diameter). A sphere may rest on or
+hang from something on one side (a seat, a table, a stick, a chain). More than one acceptable
+candidate gives "two candidates" unless one scores CLEAR_WINNER times the other; a sphere of
+another size is reported, not used. Every refusal says why, in words an operator can act on.
+The effective beam width (down to 0) is estimated per session with
+:func:`calib_core.detect.sonar_beam.estimate_beam_width_deg`.
 
 Approximations: circular uniform beam cone (no beam pattern, side lobes or multipath). The
 covariance is the fit's (range noise) plus an isotropic model-error floor of
@@ -40,13 +46,13 @@ import numpy as np
 
 from scipy.spatial import cKDTree
 
-from calib_core.detect.sonar_fit import MAD_TO_SIGMA, FitResult, angle_to_axis_rad, fit_sphere
+from calib_core.detect.sonar_fit import MAD_TO_SIGMA, FitResult, angle_to_axis_rad, cone_residuals, fit_sphere
 from calib_core.detect.sonar_search import (
     Candidate,
     disc_coverage,
     find_candidates,
     crop_ball,
-    ring_sectors,
+    polar_about,
     start_center,
 )
 from calib_core.detect.types import SonarDetection
@@ -63,12 +69,13 @@ MIN_INLIERS = 12
 MIN_COVERAGE = 0.7
 MIN_COVERAGE_SEEDED = 0.4
 MIN_PURITY = 0.6
-MAX_RING_SECTORS = 5  # of 16 around the disc: a chain or a stand, not a seabed or a wall
+MAX_RING_SECTORS = 10  # of 16 around the outline continued by a surface: a cap of it, not a ball resting on it
 # relative: a larger difference between the diameter the cone model sees and session.yaml's
 # makes it "a sphere of another size" (a decoy, or a wrong diameter): reported, never used,
 # unless an operator picked it (then fitted with the diameter it shows, with a warning)
 DIAMETER_TOL = 0.15
 DIAMETER_WARN = 0.06  # relative: above it a found sphere carries a warning
+CLEAR_WINNER = 3.0  # score ratio above which the best of two same-size candidates is taken
 MODEL_FLOOR_BEAM_FRACTION = 0.02  # 1-sigma model error per axis, as a fraction of range x beam width
 
 
@@ -102,6 +109,35 @@ def _max_sigma(radius: float, noise_m: float) -> float:
     return max(MAX_SIGMA_REL * radius, 2.0 * noise_m + 0.002 if np.isfinite(noise_m) else 0.0)
 
 
+def _attached_span(R, D, c, radius: float, alpha: float, h: float, noise_m: float) -> int:
+    """Over how many of 16 directions around the sphere's outline (one contiguous arc, the
+    shortest that holds them all) something continues it: returns just outside the outline
+    at or in front of the limb's range. A real sphere's outline is a depth step: what lies
+    behind it (a chair's back, a wall, a person) does not count; what holds it (a seat, a
+    table, a stick, a stand) touches it along one arc. A cap of a larger surface (a boulder,
+    a dome) is continued all round, a pile or a pipe on opposite sides: a long arc."""
+    cn = float(np.linalg.norm(c))
+    limb = float(np.sqrt(max(cn * cn - radius * radius, 0.0)))
+    tol = max(0.3 * radius, 4.0 * noise_m if np.isfinite(noise_m) else 0.0)
+    theta, ang = polar_about(D, c / cn)
+    sel = (theta > alpha * 1.05) & (theta <= alpha * 1.05 + max(0.5 * alpha, 2 * h))
+    sector = (ang[sel] / (2 * np.pi) * 16).astype(int) % 16
+    front = R[sel] < limb + tol
+    n_all = np.bincount(sector, minlength=16)
+    n_front = np.bincount(sector[front], minlength=16)
+    # a sector is attached when most of its returns continue the limb (flying pixels between
+    # a ball's edge and the background are a minority)
+    att = (n_front >= 2) & (n_front >= 0.5 * n_all)
+    if not att.any():
+        return 0
+    free = np.r_[~att, ~att]
+    gap, run = 0, 0
+    for f in free:  # longest circular run of free sectors
+        run = run + 1 if f else 0
+        gap = max(gap, min(run, 16))
+    return 16 - gap
+
+
 def _assess(X, R, D, fit: FitResult, radius: float, h: float, seeded: bool, noise_m: float):
     """(coverage, purity, problem) of a cone-model fit of a sphere of ``radius`` to the crop;
     ``noise_m``: the sonar's range noise measured on the planes of the cloud (or NaN)."""
@@ -113,18 +149,20 @@ def _assess(X, R, D, fit: FitResult, radius: float, h: float, seeded: bool, nois
     inl = fit.inliers
     n_in = int(inl.sum())
     purity = float((inl & in_disc).sum() / max(int(in_disc.sum()), 1))
-    coverage = disc_coverage(D[inl], c / cn, alpha)
+    # of the parts of the disc that any beam sampled (a sparse scan samples a few rings),
+    # the share that returned from the sphere
+    sampled = disc_coverage(D[in_disc], c / cn, alpha)
+    coverage = disc_coverage(D[inl], c / cn, alpha) / max(sampled, 1.0 / 12)
     sig = fit.sigma_m
     rough = _roughness_m(R[in_disc], D[in_disc])
-    near_range = (R > cn - 1.5 * radius) & (R < cn + radius)
-    ring = ring_sectors(D[near_range], c / cn, alpha * 1.05, max(0.5 * alpha, 2 * h))
+    ring = _attached_span(R, D, c, radius, alpha, h, noise_m)
     problem = ""
     if n_in < MIN_INLIERS:
-        problem = f"too few points on the sphere ({n_in})"
-    elif sig > MAX_SIGMA_REL * radius:
+        problem = f"too few returns on the sphere ({n_in})"
+    elif sig > _max_sigma(radius, noise_m):
         problem = f"returns too scattered for a sphere (sigma {sig * 1000:.0f} mm)"
-    elif np.isfinite(noise_m) and sig > 2.0 * noise_m + 0.002:
-        problem = (f"not sphere-shaped (fit sigma {sig * 1000:.0f} mm, sonar noise "
+    elif np.isfinite(noise_m) and sig > 2.0 * noise_m + 0.002 and sig > MAX_SIGMA_REL * radius / 3:
+        problem = (f"not sphere-shaped (fit sigma {sig * 1000:.0f} mm, sensor noise "
                    f"{noise_m * 1000:.0f} mm)")
     elif not sig <= 2.0 * rough + 0.002:  # the surface is smooth but not this sphere
         problem = (f"not sphere-shaped (fit sigma {sig * 1000:.0f} mm, surface noise "
@@ -134,8 +172,63 @@ def _assess(X, R, D, fit: FitResult, radius: float, h: float, seeded: bool, nois
     elif coverage < (MIN_COVERAGE_SEEDED if seeded else MIN_COVERAGE):
         problem = f"sphere only partly seen (coverage {coverage:.0%})"
     elif ring > MAX_RING_SECTORS:  # (an operator's pick overrides this one, see _judge)
-        problem = f"{RING_PROBLEM} (returns around it in {ring}/16 sectors)"
+        problem = f"{RING_PROBLEM} (it continues the outline over {ring}/16 of it)"
     return coverage, purity, problem
+
+
+@dataclass
+class _FirstLook:
+    """The cheap first fit on at most QUICK_POINTS points of a crop, and (computed once, on
+    demand) a free-radius fit of the same points: is it a sphere of another size?"""
+
+    Xq: np.ndarray
+    quick: FitResult
+    r: float
+    h: float
+    noise_m: float
+    _free: FitResult | None = None
+
+    def other_size_start(self):
+        """(centre, radius) of a sphere of another size seen in the first-look points, or None."""
+        if self._free is None:
+            self._free = fit_sphere(self.Xq, self.quick.center_m, self.r, model="cone",
+                                    free_radius=True, half_angle_rad=self.h, sigma0_m=0.01,
+                                    n_rounds=2)
+        f, r = self._free, self.r
+        if f.ok and f.sigma_m <= _max_sigma(f.radius_m, self.noise_m) and 0.6 * r <= f.radius_m <= 1.6 * r:
+            return f.center_m, f.radius_m
+        return None
+
+
+def _crop(P: np.ndarray, cand: Candidate, r: float, h: float):
+    """(start centre, crop indices into P, judged subset of the crop (indices into it))."""
+    cn0 = float(np.linalg.norm(cand.center_m))
+    start = start_center(cand, r)
+    idx = crop_ball(P, start, 1.6 * r + cn0 * np.tan(h) + 0.05)
+    if len(idx) > JUDGE_POINTS:  # judged on a random subset; _finish refits on them all
+        idx_j = np.sort(np.random.default_rng(0).choice(len(idx), JUDGE_POINTS, replace=False))
+    else:
+        idx_j = np.arange(len(idx))
+    return start, idx, idx_j
+
+
+def _size_seen(X, D, fit: FitResult, r: float, h: float) -> tuple[float, float]:
+    """(radius, its standard deviation) the cone model supports: free radius, robustly, on the
+    returns inside the disc of the known-radius fit (its chain, stick or stand lies outside).
+    NaNs if no fit."""
+    cn = float(np.linalg.norm(fit.center_m))
+    disc = angle_to_axis_rad(D, fit.center_m / cn) <= 1.05 * (np.arcsin(r / cn) + h)
+    fine = fit_sphere(X[disc], fit.center_m, r, model="cone", free_radius=True,
+                      half_angle_rad=h, sigma0_m=max(fit.sigma_m, 1e-3))
+    if not fine.ok:
+        return float("nan"), float("nan")
+    return fine.radius_m, float(np.sqrt(max(fine.cov_radius_m2, 0.0)))
+
+
+def _score(coverage: float, purity: float, r_cone: float, r: float, sig: float) -> float:
+    rel = (r_cone - r) / r if np.isfinite(r_cone) else 0.0
+    s = coverage * purity * float(np.exp(-0.5 * (rel / 0.15) ** 2)) / (1 + (sig / (0.1 * r)) ** 2)
+    return float(np.clip(s, 0, 1))
 
 
 def _judge(P: np.ndarray, cand: Candidate, r: float, h: float, seeded: bool,
@@ -146,87 +239,118 @@ def _judge(P: np.ndarray, cand: Candidate, r: float, h: float, seeded: bool,
     free radius differs by more than DIAMETER_TOL (a decoy, or a wrong diameter in
     session.yaml) the candidate is judged, and later refined, with the radius it shows.
     """
-    cn0 = float(np.linalg.norm(cand.center_m))
-    start = start_center(cand, r)
-    crop_r = 1.6 * r + cn0 * np.tan(h) + 0.05
-    idx = crop_ball(P, start, crop_r)
-    bad = _Judged(cand, idx, np.arange(len(idx)), None, float("nan"), 0.0, 0.0, 0.0, "")
+    start, idx, idx_j = _crop(P, cand, r, h)
+    bad = _Judged(cand, idx, idx_j, None, float("nan"), 0.0, 0.0, 0.0, "")
     if len(idx) < MIN_INLIERS:
-        bad.problem = f"too few points on the candidate ({len(idx)})"
+        bad.problem = f"too few returns on the sphere ({len(idx)})"
         return bad
-    # judged on at most JUDGE_POINTS points (a random subset); _finish refits on them all
-    if len(idx) > JUDGE_POINTS:
-        idx_j = np.sort(np.random.default_rng(0).choice(len(idx), JUDGE_POINTS, replace=False))
-    else:
-        idx_j = np.arange(len(idx))
     X = P[idx[idx_j]]
-    bad.idx_j = idx_j
-    # cheap first look on at most QUICK_POINTS points: most clutter ends here
-    Xq = X[::max(1, len(X) // QUICK_POINTS)]
-    quick = fit_sphere(Xq, start, r, model="cone", half_angle_rad=h, sigma0_m=0.01, n_rounds=2)
-    bad.fit = quick
-    if not quick.ok or np.linalg.norm(quick.center_m - start) > r:
-        bad.problem = "sphere fit did not converge"
+    look = _first_look(X, start, r, h, noise_m, bad)
+    if look is None:
         return bad
-    qfree = None
-
-    def other_size_start():
-        """(centre, radius) of a sphere of another size seen in the first-look points, or None."""
-        nonlocal qfree
-        if qfree is None:
-            qfree = fit_sphere(Xq, quick.center_m, r, model="cone", free_radius=True,
-                               half_angle_rad=h, sigma0_m=0.01, n_rounds=2)
-        if (qfree.ok and qfree.sigma_m <= _max_sigma(qfree.radius_m, noise_m)
-                and 0.6 * r <= qfree.radius_m <= 1.6 * r):
-            return qfree.center_m, qfree.radius_m
-        return None
-
-    if quick.sigma_m > 1.5 * _max_sigma(r, noise_m):
-        bad.problem = f"returns too scattered for a sphere (sigma {quick.sigma_m * 1000:.0f} mm)"
-        if other_size_start() is None:
-            return bad  # ... unless it is a sphere of another size
-    fit = fit_sphere(X, quick.center_m, r, model="cone", half_angle_rad=h,
-                     sigma0_m=max(min(quick.sigma_m, 0.01), 1e-3), warm=True)
+    fit = fit_sphere(X, look.quick.center_m, r, model="cone", half_angle_rad=h,
+                     sigma0_m=max(min(look.quick.sigma_m, 0.01), 1e-3), warm=True)
     bad.fit = fit
     cn = float(np.linalg.norm(fit.center_m))
     if not fit.ok or cn <= r or np.linalg.norm(fit.center_m - start) > r:
         bad.problem = "sphere fit did not converge"
         return bad
-    if fit.sigma_m > _max_sigma(r, noise_m) and other_size_start() is None:
+    if fit.sigma_m > _max_sigma(r, noise_m) and look.other_size_start() is None:
         bad.problem = f"returns too scattered for a sphere (sigma {fit.sigma_m * 1000:.0f} mm)"
         return bad
     R = np.linalg.norm(X, axis=1)
     D = X / R[:, None]
     coverage, purity, problem = _assess(X, R, D, fit, r, h, seeded, noise_m)
-    r_fit, r_cone = r, float("nan")
-    if not problem:  # the diameter the cone model supports: free radius, robustly, on the
-        # returns inside the disc of the known-radius fit (its chain or stand lies outside)
-        cn = float(np.linalg.norm(fit.center_m))
-        disc = angle_to_axis_rad(D, fit.center_m / cn) <= 1.05 * (np.arcsin(r / cn) + h)
-        fine = fit_sphere(X[disc], fit.center_m, r, model="cone", free_radius=True,
-                          half_angle_rad=h, sigma0_m=max(fit.sigma_m, 1e-3))
-        r_cone = fine.radius_m if fine.ok else float("nan")
-    start_free = other_size_start() if problem or not abs(r_cone - r) <= DIAMETER_TOL * r else None
-    if start_free is not None:
-        # perhaps a sphere of another size (a decoy, or a wrong diameter in session.yaml):
-        # free radius, robustly on all points, judged with the size it shows
-        free = fit_sphere(X, start_free[0], start_free[1], model="cone", free_radius=True,
-                          half_angle_rad=h, sigma0_m=max(min(fit.sigma_m, 0.01), 1e-3))
-        tol = max(DIAMETER_TOL * r, 3.0 * np.sqrt(max(free.cov_radius_m2, 0.0)))
-        if (free.ok and abs(free.radius_m - r) > tol and 0.6 * r <= free.radius_m <= 1.6 * r
-                and float(np.linalg.norm(free.center_m)) > free.radius_m):
-            fit, r_fit, r_cone = free, free.radius_m, free.radius_m
-            coverage, purity, problem = _assess(X, R, D, fit, r_fit, h, seeded, noise_m)
+    r_fit = r
+    r_cone, sd = (float("nan"), 0.0) if problem else _size_seen(X, D, fit, r, h)
+    # sparse scans (a few LiDAR rings) pin the size loosely: allow for its uncertainty
+    tol = max(DIAMETER_TOL * r, 3.0 * sd) if np.isfinite(sd) else DIAMETER_TOL * r
+    if problem or not abs(r_cone - r) <= tol:
+        other = _as_other_size(X, R, D, look, fit, r, h, seeded, noise_m)
+        if other is not None:
+            fit, r_fit, r_cone, (coverage, purity, problem) = other
     if seeded and problem.startswith(RING_PROBLEM):  # the operator says it is the sphere
         problem = ""
     if not problem and not (np.isfinite(r_cone) and 0.6 * r <= r_cone <= 1.6 * r
-                            and (r_fit != r or abs(r_cone - r) <= DIAMETER_TOL * r)):
-        problem = f"wrong size (diameter {2 * r_cone:.3f} m, expected {2 * r:.3f} m)"
-    rel = (r_cone - r) / r if np.isfinite(r_cone) else 0.0
-    sig = fit.sigma_m
-    score = coverage * purity * float(np.exp(-0.5 * (rel / 0.15) ** 2)) / (1 + (sig / (0.1 * r)) ** 2)
+                            and (r_fit != r or abs(r_cone - r) <= tol)):
+        problem = size_problem(r_cone, r)
     return _Judged(cand, idx, idx_j, fit, float(r_cone), coverage, purity,
-                   float(np.clip(score, 0, 1)), problem, r_fit)
+                   _score(coverage, purity, r_cone, r, fit.sigma_m), problem, r_fit)
+
+
+def _first_look(X, start, r, h, noise_m, bad: _Judged) -> _FirstLook | None:
+    """Cheap fit on at most QUICK_POINTS points (most clutter ends here); None (with
+    ``bad.problem`` set) when the candidate is hopeless. A hopeless or rough first look is
+    tried again from six nearby starts (a coarse centre pulled into the seat or table under the
+    ball)."""
+    Xq = X[::max(1, len(X) // QUICK_POINTS)]
+    quick = fit_sphere(Xq, start, r, model="cone", half_angle_rad=h, sigma0_m=0.01, n_rounds=2)
+    look = _FirstLook(Xq, quick, r, h, noise_m)
+    # scattered beyond the sensor noise: perhaps a basin that takes in what holds the ball
+    rough = np.isfinite(noise_m) and quick.ok and quick.sigma_m > 2.0 * noise_m + 0.002
+    if rough or _hopeless(look, start):
+        look = _FirstLook(Xq, _restart(Xq, start, r, h, quick), r, h, noise_m)
+    bad.fit = look.quick
+    why = _hopeless(look, start)
+    if why:
+        bad.problem = why
+        return None
+    return look
+
+
+def _hopeless(look: _FirstLook, start) -> str:
+    """Why a first look ends the candidate ("" if it does not)."""
+    q, r = look.quick, look.r
+    if not q.ok or np.linalg.norm(q.center_m - start) > r:
+        return "sphere fit did not converge"
+    if q.sigma_m > 1.5 * _max_sigma(r, look.noise_m) and look.other_size_start() is None:
+        return f"returns too scattered for a sphere (sigma {q.sigma_m * 1000:.0f} mm)"
+    return ""
+
+
+def _restart(Xq, start, r, h, quick: FitResult) -> FitResult:
+    """The first look from six starts a quarter radius off the coarse centre; the fit whose
+    returns are best explained (truncated quadratic cost at a fixed 1 cm scale, so fits that
+    keep different numbers of points compare fairly)."""
+    R = np.linalg.norm(Xq, axis=1)
+    D = Xq / R[:, None]
+
+    def cost(f: FitResult) -> float:
+        if not f.ok or np.linalg.norm(f.center_m - start) > r:
+            return np.inf
+        a, b = cone_residuals(f.center_m, r, R, D, h)
+        return float(np.sum(np.minimum(np.hypot(a, b) / 0.01, 3.0) ** 2))
+
+    best, best_cost = quick, cost(quick)
+    for step in np.vstack([np.eye(3), -np.eye(3)]) * 0.25 * r:
+        f = fit_sphere(Xq, start + step, r, model="cone", half_angle_rad=h, sigma0_m=0.01, n_rounds=2)
+        c = cost(f)
+        if c < best_cost:
+            best, best_cost = f, c
+    return best
+
+
+def _as_other_size(X, R, D, look: _FirstLook, fit: FitResult, r, h, seeded, noise_m):
+    """Perhaps a sphere of another size (a decoy, or a wrong diameter in session.yaml): free
+    radius, robustly on all points, judged with the size it shows. (fit, r_fit, r_cone,
+    assessment) or None."""
+    start_free = look.other_size_start()
+    if start_free is None:
+        return None
+    free = fit_sphere(X, start_free[0], start_free[1], model="cone", free_radius=True,
+                      half_angle_rad=h, sigma0_m=max(min(fit.sigma_m, 0.01), 1e-3))
+    tol = max(DIAMETER_TOL * r, 3.0 * np.sqrt(max(free.cov_radius_m2, 0.0)))
+    if (free.ok and abs(free.radius_m - r) > tol and 0.6 * r <= free.radius_m <= 1.6 * r
+            and float(np.linalg.norm(free.center_m)) > free.radius_m):
+        return free, free.radius_m, free.radius_m, _assess(X, R, D, free, free.radius_m, h, seeded, noise_m)
+    return None
+
+
+def size_problem(r_seen: float, r: float) -> str:
+    """The reason shown when the sphere's size disagrees with session.yaml's diameter."""
+    if not np.isfinite(r_seen):
+        return "sphere size could not be measured"
+    return f"sphere seen {2 * r_seen:.2f} m across, {2 * r:.2f} m expected"
 
 
 def _not_found(reason: str, method: str, **extras) -> SonarDetection:
@@ -293,26 +417,31 @@ def detect_sphere_in_cloud(points_sonar_m: np.ndarray, sphere_radius_m: float,
     if not good:
         best = max(judged, key=lambda j: j.score)
         why = best.problem or "no sphere-like cluster"
-        return _not_found(f"no sphere-like cluster ({why})", method, n_points=n_all,
-                          n_candidates=len(judged))
+        at = float(np.linalg.norm(best.cand.center_m))
+        return _not_found(f"no sphere-like cluster (best candidate, {at:.2f} m away: {why})",
+                          method, n_points=n_all, n_candidates=len(judged))
     extras: dict = {}
     nominal = [j for j in good if j.radius_fit_m == r]
     other = [j for j in good if j.radius_fit_m != r]
     if seed is not None:  # the operator's pick decides, whatever its size
         chosen = min(good, key=lambda j: np.linalg.norm(j.fit.center_m - seed))
-    elif len(nominal) > 1:
+    elif len(nominal) > 1 and nominal[0].score < CLEAR_WINNER * nominal[1].score:
+        at = " and ".join(f"{np.linalg.norm(k.fit.center_m):.2f} m" for k in nominal[:3])
         pos = "; ".join(str(np.round(k.fit.center_m, 3).tolist()) for k in nominal[:3])
-        return _not_found(f"two candidates (at {pos} m)", method, n_points=n_all,
-                          n_candidates=len(good))
+        return _not_found(f"two candidates: round objects of the sphere's size at {at} "
+                          f"(centres {pos} m)", method, n_points=n_all, n_candidates=len(good))
     elif not nominal:  # sphere-like, but not of session.yaml's size: a decoy or a wrong diameter
         k = max(other, key=lambda j: j.score)
         return _not_found(
-            f"only a sphere of another size: diameter {2 * k.radius_cone_m:.3f} m, session.yaml "
+            f"only a sphere of another size: seen {2 * k.radius_cone_m:.3f} m across, session.yaml "
             f"says {2 * r:.3f} m (check the diameter, or pick the sphere by hand)", method,
             n_points=n_all, candidate_center=[round(float(v), 4) for v in k.fit.center_m],
-            candidate_diameter_m=round(2 * k.radius_cone_m, 4))
+            candidate_diameter_m=round(2 * k.radius_cone_m, 3))
     else:
         chosen = nominal[0]
+        if len(nominal) > 1:  # a clear winner: say what else was seen
+            extras["warning"] = (f"another round object at {np.linalg.norm(nominal[1].fit.center_m):.2f} m "
+                                 f"scored {nominal[1].score:.2f} against {chosen.score:.2f}")
         if other:
             extras["ignored_other_sizes_m"] = [round(2 * k.radius_cone_m, 4) for k in other]
     return _finish(P, W, base, chosen, r, h, method, n_all, info, extras)
@@ -362,13 +491,14 @@ def _finish(P, W, base, j: _Judged, r, h, method, n_all, info, extras) -> SonarD
         "planes_removed": int(info.get("planes_removed", 0)),
         "plane_noise_m": round(float(info["noise_m"]), 5) if np.isfinite(info["noise_m"]) else None,
     })
+    size_note = ""
+    seen = f"sphere seen {2 * j.radius_cone_m:.3f} m across, session.yaml says {2 * r:.3f} m"
     if other_size:
-        extras["warning"] = (f"sonar sees a sphere of diameter {2 * j.radius_cone_m:.3f} m, "
-                             f"session.yaml says {2 * r:.3f} m")
+        size_note = seen
     elif np.isfinite(j.radius_cone_m) and abs(j.radius_cone_m - r) > DIAMETER_WARN * r:
-        extras["warning"] = (f"sonar sees a sphere of diameter {2 * j.radius_cone_m:.3f} m, "
-                             f"session.yaml says {2 * r:.3f} m: check the diameter or the "
-                             f"beam width (sonar_beam.estimate_beam_width_deg)")
+        size_note = seen + ": check the diameter or the beam width (sonar_beam.estimate_beam_width_deg)"
+    if size_note:
+        extras["warning"] = "; ".join(w for w in (extras.get("warning"), size_note) if w)
     if other_size and method == "cone-model":
         extras["fitted_with_diameter_m"] = round(2 * cone.radius_m, 4)
     return SonarDetection(

@@ -24,6 +24,10 @@ import numpy as np
 from scipy.optimize import least_squares
 
 MAD_TO_SIGMA = 1.4826
+# a return outside the (cone-widened) silhouette is kept as an inlier only within this many
+# range-noise sigmas of it: the beam directions are exact, so what lies further out (a seat,
+# a table, a stick under the ball) is not the sphere
+OUTSIDE_SIGMAS = 1.0
 
 
 def _unit_rows(P: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -183,7 +187,7 @@ def fit_sphere(points_m: np.ndarray, center0_m, radius_m: float, model: str = "c
     first = 0
     if warm:
         ra, rb = _split(model, f_all(x), n)
-        inl = (np.abs(ra) <= 3 * sigma) & (rb <= 3 * sigma)
+        inl = (np.abs(ra) <= 3 * sigma) & (rb <= OUTSIDE_SIGMAS * sigma)
         first = 1
         if inl.sum() < npar + 2:
             inl = np.ones(n, bool)
@@ -204,7 +208,7 @@ def fit_sphere(points_m: np.ndarray, center0_m, radius_m: float, model: str = "c
         base = ra[core] if core.sum() >= npar + 2 else ra
         sigma = float(np.clip(MAD_TO_SIGMA * np.median(np.abs(base - np.median(base))), 5e-4, 0.1))
         thr = max(3.0 * sigma, 1e-3)
-        new = (np.abs(ra) <= thr) & (rb <= thr)
+        new = (np.abs(ra) <= thr) & (rb <= max(OUTSIDE_SIGMAS * sigma, 1e-3))
         if new.sum() < npar + 2:
             ok = False
             break

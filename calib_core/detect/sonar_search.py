@@ -13,6 +13,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from scipy import ndimage
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
@@ -71,6 +72,13 @@ def _plane_from_3(P3: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return n, np.einsum("ij,ij->i", n, P3[:, 0]), good
 
 
+MAX_FAILED_PLANES = 3  # plane hypotheses that fail the extent/density checks before giving up
+# a plane's voxels lie within a few tenths of the voxel of it (sd / voxel <= 0.2 measured on
+# floors, walls, seabeds, tables of sonar, LiDAR and RGB-D clouds); a band filled evenly
+# (sd / voxel ~ 0.5-0.75) is things that happen to line up (a ball, a person, a stick): no plane
+MAX_PLANE_SCATTER = 0.35
+
+
 def remove_planes(Q: np.ndarray, min_extent_m: float, thr_m: float, rng: np.random.Generator,
                   max_planes: int = 4, n_hyp: int = 48, min_frac: float = 0.02,
                   min_count: int = 60, min_density: float = 0.1) -> tuple[np.ndarray, list]:
@@ -78,15 +86,20 @@ def remove_planes(Q: np.ndarray, min_extent_m: float, thr_m: float, rng: np.rand
 
     A plane is removed when it holds at least ``max(min_count, min_frac * len)`` voxels within
     ``thr_m`` and spreads over more than ``min_extent_m`` (4 x the std along its second
-    principal axis), so a sphere cap is never taken for a plane, and fills at least
-    ``min_density`` of the voxel cells of its area (scattered returns are no plane). Returns (keep mask,
+    principal axis), so a sphere cap is never taken for a plane, fills at least
+    ``min_density`` of the voxel cells of its area (scattered returns are no plane) and is thin
+    (MAX_PLANE_SCATTER). A hypothesis that fails is set aside and another tried (up to
+    MAX_FAILED_PLANES). Returns (keep mask,
     [(normal, offset, n_voxels)]).
     """
     keep = np.ones(len(Q), bool)
+    tried = np.zeros(len(Q), bool)  # inliers of a plane that failed the checks: not sampled again
     planes = []
     Qk = Q
-    for _ in range(max_planes):
-        idx = np.nonzero(keep)[0]
+    for _ in range(max_planes + MAX_FAILED_PLANES):
+        if len(planes) >= max_planes:
+            break
+        idx = np.nonzero(keep & ~tried)[0]
         Qk = Q[idx]
         if len(idx) < max(min_count, 10):
             break
@@ -111,14 +124,50 @@ def remove_planes(Q: np.ndarray, min_extent_m: float, thr_m: float, rng: np.rand
             Xc = X - mu
             ev, evec = np.linalg.eigh(Xc.T @ Xc / len(X))  # ascending: normal first
             nrm, off = evec[:, 0], float(mu @ evec[:, 0])
-        inl = idx[np.abs(Qk @ nrm - off) < thr_m]
+        dist = np.abs(Qk @ nrm - off)
+        sd = 1.4826 * float(np.median(dist[dist < thr_m])) if (dist < thr_m).any() else thr_m
+        on = dist < thr_m
+        inl = idx[on]
         spread = 4.0 * np.sqrt(np.maximum(ev[[2, 1]], 0.0))
         density = len(inl) * thr_m * thr_m / max(spread[0] * spread[1], 1e-12)
-        if len(inl) < min_count or spread[1] < min_extent_m or density < min_density:
+        if len(inl) < min_count:
             break
+        if spread[1] < min_extent_m or density < min_density or sd > MAX_PLANE_SCATTER * thr_m:
+            tried[inl] = True  # (a sphere cap, scattered returns, a ball and a person that
+            # happen to line up): look for another plane
+            continue
+        inl = _plane_pieces(Q, inl, evec[:, 1:], thr_m, 0.5 * min_extent_m, dist[on], sd)
         keep[inl] = False
         planes.append((nrm, off, int(len(inl))))
     return keep, planes
+
+
+def _plane_pieces(Q: np.ndarray, inl: np.ndarray, axes: np.ndarray, thr_m: float,
+                  min_piece_m: float, dist_m: np.ndarray, sd_m: float) -> np.ndarray:
+    """The plane's inliers that belong to connected pieces at least ``min_piece_m`` across
+    (pieces: 8-connected cells of 2 x ``thr_m`` in the plane's own axes ``axes`` (3,2)): a
+    ball that merely touches the plane (a table's front legs and the ball's front line up)
+    is a small separate piece, curved through the band (rms distance ``dist_m`` over twice the
+    plane's scatter ``sd_m``), and stays."""
+    uv = Q[inl] @ axes
+    cell = np.floor((uv - uv.min(axis=0)) / (2.0 * thr_m)).astype(int)
+    grid = np.zeros(cell.max(axis=0) + 1, bool)
+    grid[cell[:, 0], cell[:, 1]] = True
+    lab_grid, n = ndimage.label(grid, structure=np.ones((3, 3), bool))
+    if n <= 1:
+        return inl
+    lab = lab_grid[cell[:, 0], cell[:, 1]] - 1
+    lo = np.full((n, 2), np.inf)
+    hi = np.full((n, 2), -np.inf)
+    np.minimum.at(lo, lab, uv)
+    np.maximum.at(hi, lab, uv)
+    big = (hi - lo).max(axis=1) >= min_piece_m
+    # a small piece as flat as the plane is the plane (a patch cut off by a shadow); a small
+    # piece spread through the band is something curved that touches it (a ball)
+    cnt = np.bincount(lab, minlength=n)
+    rms = np.sqrt(np.bincount(lab, weights=dist_m ** 2, minlength=n) / np.maximum(cnt, 1))
+    flat = rms <= 2.0 * max(sd_m, 1e-9)
+    return inl[(big | flat)[lab]]
 
 
 def plane_range_noise_m(points_m: np.ndarray, planes: list, thr_m: float,
@@ -280,6 +329,8 @@ def find_candidates(points_m: np.ndarray, radius_m: float, half_angle_rad: float
         ext = np.ptp(X, axis=0).max()
         if ext < 0.6 * r:
             continue
+        if ext > 3.0 * r and len(X) >= 3 * LOCAL_PLANE_MIN:
+            X = _without_local_planes(X, r, voxel, rng)
         for _attempt in range(min(6, 2 + len(X) // 200)):  # big clusters hide more
             rng_c = float(np.linalg.norm(X.mean(axis=0)))
             bloom = rng_c * np.tan(half_angle_rad)
@@ -325,6 +376,18 @@ def find_candidates(points_m: np.ndarray, radius_m: float, half_angle_rad: float
         cands = prescreen(P, cands, r, half_angle_rad, info["noise_m"])
         info["n_prescreened"] = len(cands)
     return cands, info
+
+
+LOCAL_PLANE_MIN = 20  # voxels of a plane inside one cluster (a table top seen at a grazing angle)
+
+
+def _without_local_planes(X: np.ndarray, r: float, voxel: float, rng: np.random.Generator) -> np.ndarray:
+    """The cluster's voxels without the planes it holds that are too small for the cloud-wide
+    search (a table top or a seat under the ball, seen at a grazing angle): up to two planes
+    wider than 3 radii (a sphere cap never is)."""
+    keep, planes = remove_planes(X, min_extent_m=3.0 * r, thr_m=voxel, rng=rng, max_planes=2,
+                                 min_frac=0.1, min_count=LOCAL_PLANE_MIN)
+    return X[keep] if planes and keep.sum() >= LOCAL_PLANE_MIN else X
 
 
 def prescreen(points_m: np.ndarray, cands: list[Candidate], r: float, half_angle_rad: float,

@@ -17,9 +17,10 @@ import numpy as np
 
 from calib_core.errors import SessionError
 from calib_core.io.las_header import MAX_CLOUD_POINTS, check_las_header, check_npy_header
+from calib_core.io.off import read_off
 
 MAX_CLOUD_BYTES = 2 * 2**30  # a sonar scan is tens of MB; anything this big is a wrong file
-CLOUD_SUFFIXES = (".ply", ".pcd", ".xyz", ".csv", ".txt", ".npy", ".las", ".laz")
+CLOUD_SUFFIXES = (".ply", ".pcd", ".xyz", ".csv", ".txt", ".npy", ".las", ".laz", ".off")
 
 
 @dataclass(frozen=True)
@@ -313,4 +314,5 @@ _READERS = {
     ".npy": _read_npy,
     ".las": _read_las,
     ".laz": _read_las,
+    ".off": read_off,
 }

@@ -26,6 +26,7 @@ import numpy as np
 
 from calib_core.camera import CameraModel
 from calib_core.synth.scene import Scene, raycast
+from calib_core.synth.textures import texture_factor
 
 
 @dataclass(frozen=True)
@@ -120,11 +121,26 @@ def _shade(scene: Scene, water: Water, o_world, d_world, max_range_m):
         nn = n[m]
         flip = np.einsum("ij,ij->i", nn, d_world[m]) > 0
         nn[flip] *= -1
+        _apply_textures(scene, hit[m], o_world + d_world[m] * t[m, None] if np.ndim(o_world) == 1
+                        else o_world[m] + d_world[m] * t[m, None], nn, alb)
         lam = water.ambient + water.diffuse * np.clip(nn[:, 2], 0, None)
         Lo = alb * lam[:, None] * np.asarray(water.light_rgb, float)[None, :]
         tr = np.exp(-water.attenuation_per_m * t[m])[:, None]
         L[m] = Lo * tr + B[m] * (1 - tr)
     return L, hit
+
+
+def _apply_textures(scene: Scene, hit: np.ndarray, p_world: np.ndarray, n_world: np.ndarray,
+                    albedo: np.ndarray) -> None:
+    """Multiply ``albedo`` (N,3, in place) by the textures of the primitives hit."""
+    for i, prim in enumerate(scene.primitives):
+        mat = prim.material
+        if not getattr(mat, "texture", ""):
+            continue
+        sel = hit == i
+        if sel.any():
+            albedo[sel] *= texture_factor(mat.texture, p_world[sel], n_world[sel], mat.texture_scale_m,
+                                          mat.texture_contrast, mat.texture_seed)[:, None]
 
 
 def render_radiance(scene: Scene, cam: CameraModel, T_world_cam: np.ndarray, water: Water,

@@ -7,6 +7,7 @@ near image corners, 1-4 m away), turbidity, lighting, blur and noise.
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -17,10 +18,12 @@ from calib_core.io.atomic import atomic_write_yaml
 from calib_core.io.clouds import save_cloud
 from calib_core.io.images import save_image
 from calib_core.io.intrinsics import save_intrinsics_ros
-from calib_core.synth import world
+from calib_core.synth import range_scenes, room, world
 from calib_core.synth.camera_render import RenderOptions, finish_image, render_radiance
+from calib_core.synth.drift import drift_positions, write_drift_frames
 from calib_core.synth.ground_truth import GT_FILE, GT_FORMAT, to_list
 from calib_core.synth.presets import get_preset
+from calib_core.synth.range_capture import in_field, sensor_config, simulate_range
 from calib_core.synth.rig import sample_rig, sample_target_center, silhouette_uv, sphere_in_image
 from calib_core.synth.scene import Scene, raycast
 from calib_core.synth.sonar_sim import SonarConfig, simulate_scan
@@ -43,26 +46,46 @@ def generate_session(out_dir, preset, seed: int, progress=None, **overrides) -> 
     W, H = max(16, round(1920 * P.scale)), max(9, round(1080 * P.scale))
     rig = sample_rig(r_rig, P.n_cameras, W, H, P.scale)
     cams = list(rig.cams)
-    diameter = 0.22 if P.name == "canal" else float(r_rig.uniform(0.18, 0.30))
+    diameter = 0.22 if P.name == "canal" else float(r_rig.uniform(*P.diameter_range))
     radius = diameter / 2
     # a wrong stated diameter is too big or too small, by the preset's factor
     d_factor = P.diameter_factor if P.diameter_factor == 1 or r_rig.random() < 0.5 else 2 - P.diameter_factor
     style = world.sample_target_style(r_rig, radius)
     water = world.sample_water(r_scene, P.bright)
-    opts = RenderOptions(aa=4, blur_sigma_px=float(r_scene.uniform(0.5, 1.2)) * max(P.scale, 0.35),
+    if P.scene == "room":
+        water = room.room_air(r_scene)
+    elif P.turbidity > 0:  # contrast falls with distance: strong attenuation and veil
+        water = replace(water, attenuation_per_m=float(r_scene.uniform(P.turbidity, P.turbidity + 0.3)))
+    opts = RenderOptions(aa=4, blur_sigma_px=float(r_scene.uniform(0.5, 1.2)) * max(P.scale, 0.35)
+                         * (1.5 if P.turbidity > 0 else 1.0),
                          noise_dn=float(r_scene.uniform(0.8, 3.0)), shot_gain=float(r_scene.uniform(0.05, 0.3)))
     cfg = SonarConfig(pan_step_deg=P.pan_step_deg, pan_span_deg=P.pan_span_deg, sub_rays=P.sub_rays,
                       range_scale=P.range_scale, range_noise_m=float(r_sonar.uniform(0.002, 0.006)),
                       spurious_rate=float(r_sonar.uniform(0.0005, 0.003)))
+    if P.range_sensor != "sonar":  # a LiDAR or an RGB-D camera in the sonar's place
+        cfg = sensor_config(P.range_sensor, r_sonar)
 
-    surface_z, static = world.surface_and_pontoons(r_scene, rig, P.scene)
-    seabed_z = None
-    if P.scene == "seabed":
-        lowest = min(T[2, 3] for _, T in rig.cams.values())
+    if P.scene == "lab":
+        surface_z, static = 50.0, []
+    else:
+        surface_z, static = world.surface_and_pontoons(r_scene, rig, P.scene)
+    seabed_z = floor_z = None
+    lowest = min(T[2, 3] for _, T in rig.cams.values())
+    if P.scene == "room":  # dry: no surface; the floor plays the seabed's part
+        surface_z, static = 50.0, []
+    if P.scene in ("seabed", "room"):
         seabed_z = float(min(lowest, 0.0) - r_scene.uniform(0.5, 1.2))
+    if P.scene == "lab":
+        floor_z = float(min(lowest, 0.0) - r_scene.uniform(0.6, 1.0))
+    T_sonar_world = invert_T(rig.T_world_sonar)
 
     def ok_extra(c):
         if c[2] > surface_z - 0.5 - radius:
+            return False
+        if floor_z is not None and c[2] - radius < floor_z + (0.5 if P.holder == "stick" else 0.3):
+            return False
+        if P.range_sensor != "sonar" and not in_field(P.range_sensor, transform_points(T_sonar_world, c[None])[0],
+                                                      radius, cfg):
             return False
         return seabed_z is None or c[2] - radius > seabed_z + 0.25
 
@@ -84,8 +107,14 @@ def generate_session(out_dir, preset, seed: int, progress=None, **overrides) -> 
             if ok_extra(cand) and sphere_in_image(cam0, invert_T(T_wc0), cand, radius, 2.0):
                 image_centers[moved_idx] = cand
                 break
-    if seabed_z is not None:
+    drift_idx = int(r_rig.integers(P.n_captures)) if P.drift_m > 0 else -1
+    if P.scene == "room":
+        static += room.room_scene(r_scene, seabed_z, centers + image_centers)
+        ball = room.ball_style(r_rig)
+    elif seabed_z is not None:
         static += world.seabed_scene(r_scene, rig, seabed_z, centers + image_centers)
+    if floor_z is not None:
+        static += range_scenes.room(r_scene, floor_z)
 
     total = (P.n_captures + P.n_flange) * (1 + len(cams)) + len(cams)
     done = 0
@@ -97,7 +126,14 @@ def generate_session(out_dir, preset, seed: int, progress=None, **overrides) -> 
             progress(done, total, label)
 
     def target_parts(c, rng):
-        parts = [world.target(style, c, radius, P.bright)]
+        if P.scene == "room":
+            return room.ball_parts(rng, ball, c, radius, seabed_z, rig.cams[cams[0]][1][:3, 3])
+        ball_part = (range_scenes.solid_ball(c, radius, P.bright) if P.solid_ball
+                     else world.target(style, c, radius, P.bright))
+        if P.holder:  # resting on a chair, a table or a slab, or on a stick held by a person
+            base_z = floor_z if floor_z is not None else seabed_z
+            return [ball_part] + range_scenes.holder_parts(rng, P.holder, c, radius, base_z, rig.T_world_sonar[:3, 3])
+        parts = [ball_part]
         hold = (world.stand(rng, c - [0, 0, radius], seabed_z) if seabed_z is not None
                 else world.chain(rng, c + [0, 0, radius - 0.5 * style["wire_m"]], surface_z))
         return parts + ([hold] if hold is not None else [])
@@ -118,7 +154,7 @@ def generate_session(out_dir, preset, seed: int, progress=None, **overrides) -> 
             img_scene = scan_scene if k != moved_idx else Scene(tuple(static + target_parts(image_centers[k], r_cap) + extra))
         else:
             scan_scene = img_scene = Scene(tuple(static + world.flange_assembly(r_cap, rig, surface_z)))
-        cloud = simulate_scan(scan_scene, rig.T_world_sonar, cfg, r_cap)
+        cloud = simulate_range(P.range_sensor, scan_scene, rig.T_world_sonar, cfg, r_cap)
         save_cloud(out / "clouds" / f"{cid}{ext}", cloud)
         tick(f"{cid} sonar")
         images = {}
@@ -134,6 +170,10 @@ def generate_session(out_dir, preset, seed: int, progress=None, **overrides) -> 
         manifest_caps.append({"id": cid, "cloud": f"clouds/{cid}{ext}", "images": images})
         gt_caps[cid] = _capture_truth(rig, img_scene, radius, centers[k] if is_target else None,
                                       image_centers[k] if is_target else None)
+        if k == drift_idx:  # the drift preset: frames recorded while the sphere drifts
+            gt_caps[cid]["drift"] = write_drift_frames(
+                out, cid, rig, lambda c: Scene(tuple(static + target_parts(c, np.random.default_rng([seed, 5, k])) + extra)),
+                drift_positions(r_cap, centers[k], P.drift_m), water, opts, r_cap, P.jpeg_quality)
 
     # ---- backgrounds, intrinsics, manifest, truth ------------------------------------
     bg_scene = Scene(tuple(static))
@@ -162,8 +202,7 @@ def generate_session(out_dir, preset, seed: int, progress=None, **overrides) -> 
         "format": "sonar-camera-session/1",
         "name": f"synth-{P.name}-seed{seed}",
         "sphere": {"diameter": round(diameter * d_factor, 4)},
-        "sonar": {"model": "BlueView BV5000-2250 (simulated)", "sound_speed": SOUND_SPEED,
-                  "beam_width_deg": cfg.beam_width_deg},
+        "sonar": _sonar_block(P.range_sensor, cfg),
         "cameras": cam_entries,
         "captures": manifest_caps,
         "measured": _measured(r_noise, rig),
@@ -176,12 +215,17 @@ def generate_session(out_dir, preset, seed: int, progress=None, **overrides) -> 
         T21 = T_true["cam2"] @ invert_T(T_true["cam1"])
         session["stereo"] = {"T_cam2_cam1": to_list(_checkerboard_error(r_noise, T21))}
         gt["stereo"] = {"T_cam2_cam1": to_list(T21)}
-    gt["sonar"] = {"frame": "x forward, y left, z up (origin at the acoustic centre)",
-                   "model": "first strong return in a cone of sub-rays, placed on the beam centre line",
-                   "beam_width_deg": cfg.beam_width_deg, "n_beams": cfg.n_beams, "fan_deg": cfg.fan_deg,
-                   "pan_step_deg": cfg.pan_step_deg, "pan_span_deg": cfg.pan_span_deg, "sub_rays": cfg.sub_rays,
-                   "range_noise_m": cfg.range_noise_m, "range_quantum_m": cfg.range_quantum_m,
-                   "true_sound_speed_m_s": SOUND_SPEED * P.range_scale}
+    if P.range_sensor == "sonar":
+        gt["sonar"] = {"frame": "x forward, y left, z up (origin at the acoustic centre)",
+                       "model": "first strong return in a cone of sub-rays, placed on the beam centre line",
+                       "beam_width_deg": cfg.beam_width_deg, "n_beams": cfg.n_beams, "fan_deg": cfg.fan_deg,
+                       "pan_step_deg": cfg.pan_step_deg, "pan_span_deg": cfg.pan_span_deg, "sub_rays": cfg.sub_rays,
+                       "range_noise_m": cfg.range_noise_m, "range_quantum_m": cfg.range_quantum_m,
+                       "true_sound_speed_m_s": SOUND_SPEED * P.range_scale}
+    else:
+        gt["sonar"] = {"frame": "x forward, y left, z up (origin at the optical centre)",
+                       "sensor": P.range_sensor, "model": "one ray per return, no footprint (beam width 0)",
+                       "beam_width_deg": 0.0, **{k: v for k, v in vars(cfg).items()}}
     gt["world"] = {"T_world_sonar": to_list(rig.T_world_sonar), "surface_z_m": surface_z,
                    "seabed_z_m": seabed_z, "attenuation_per_m": water.attenuation_per_m}
     gt["backgrounds"] = {c: ({"video": True, "fps": VIDEO_FPS, "target_until_s": 1.0} if P.background_video
@@ -190,6 +234,16 @@ def generate_session(out_dir, preset, seed: int, progress=None, **overrides) -> 
     atomic_write_yaml(out / GT_FILE, gt)
     atomic_write_yaml(out / "session.yaml", session)
     return out
+
+
+def _sonar_block(sensor: str, cfg) -> dict:
+    """session.yaml's range-sensor block. Only the sonar states a beam width: for the others
+    the detector has to find out that there is (almost) none."""
+    if sensor == "sonar":
+        return {"model": "BlueView BV5000-2250 (simulated)", "sound_speed": SOUND_SPEED,
+                "beam_width_deg": cfg.beam_width_deg}
+    name = {"lidar16": "16-ring spinning LiDAR (simulated)", "rgbd": "RGB-D depth camera (simulated)"}[sensor]
+    return {"model": name}
 
 
 def _capture_truth(rig, img_scene, radius, c_scan_world, c_img_world) -> dict:

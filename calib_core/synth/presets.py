@@ -20,7 +20,12 @@ class Preset:
     pan_step_deg, sub_rays: sonar pan step and sub-rays per 1 deg beam cone.
     range_scale: reported range = true range * range_scale (sound-speed error).
     moved: one capture's target moves 10-20 cm between the scan and the images.
-    scene: "canal" (open water, chain, pontoons), "seabed" (seabed, wall/dock, stand, clutter).
+    scene: "canal" (open water, chain, pontoons), "seabed" (seabed, wall/dock, stand, clutter),
+        "lab" (a room: floor and wall, in air),
+        "room" (dry, textured: brick wall, tiled floor, furniture blocks; a matte foam ball of
+        any colour on a stick or resting on a block; :mod:`calib_core.synth.room`).
+    turbidity: > 0 = turbid water, attenuation drawn from [turbidity, turbidity + 0.3] 1/m,
+        optical blur x1.5 (contrast falls with distance).
     bright: bright sphere on dark water (instead of a dark mesh on bright backlit water).
     n_backgrounds: sphere-free frames per camera (0 = no background in session.yaml).
     background_video: write the background as an MJPG .avi whose first second still shows the
@@ -30,6 +35,8 @@ class Preset:
         (wrong-diameter test: ~30 % too big or too small).
     cloud_format: suffix of the cloud files (".ply", ".pcd", ".npy", ".xyz").
     scale: image resolution factor (1.0 = 1920x1080); K scales with it.
+    drift_m: one capture's sphere drifts this far (m) during its scan; the session then holds
+        ``frames/<cam>/<id>_<j>.jpg`` recorded during that scan (a bag written from it shows the drift).
     corner_fraction: share of captures aimed near an image corner.
     """
 
@@ -53,6 +60,16 @@ class Preset:
     scale: float = 1.0
     corner_fraction: float = 0.3
     jpeg_quality: int = 90
+    # range side (issue 11): the range sensor ("sonar", or "lidar16" / "rgbd" from
+    # calib_core.synth.range_sim, no beam footprint), what holds the ball ("" = the scene's
+    # chain or stand; "chair", "table" or "stick" with a person, calib_core.synth.range_scenes),
+    # a solid ball instead of the open mesh, and the range of true diameters (m)
+    range_sensor: str = "sonar"
+    holder: str = ""
+    solid_ball: bool = False
+    diameter_range: tuple = (0.18, 0.30)
+    drift_m: float = 0.0
+    turbidity: float = 0.0
 
     def with_(self, **changes) -> "Preset":
         """A copy with some fields changed (e.g. ``scale=0.25`` for fast tests)."""
@@ -80,6 +97,28 @@ _LIST = [
            pan_step_deg=0.75, decoys=True, cloud_format=".xyz"),
     Preset("wrongdiam", "session.yaml states a sphere diameter ~30 % off the true one", n_captures=8,
            pan_step_deg=0.75, diameter_factor=1.3),
+    # range side (issue 11): sensors with no beam footprint, balls resting on or held by things
+    Preset("lidar-chair", "16-ring spinning LiDAR (no footprint, 2 deg between rings, 1-2 cm noise); a grey "
+           "0.5-0.7 m gym ball resting on a chair in a room", n_captures=8, scene="lab", range_sensor="lidar16",
+           holder="chair", solid_ball=True, diameter_range=(0.5, 0.7), n_backgrounds=0),
+    Preset("rgbd-stick", "RGB-D depth camera (depth noise growing with range, holes, flying pixels); a yellow "
+           "ball on a black stick held by a person close behind it", n_captures=8, scene="lab", range_sensor="rgbd",
+           holder="stick", solid_ball=True, diameter_range=(0.3, 0.5), bright=True, n_backgrounds=0),
+    Preset("rgbd-table", "RGB-D depth camera; the ball resting on a table wider than itself", n_captures=8,
+           scene="lab", range_sensor="rgbd", holder="table", solid_ball=True, diameter_range=(0.3, 0.5)),
+    Preset("seabed-slab", "sonar; the mesh sphere resting on a flat slab on the seabed (the slab reaches well "
+           "past the sphere on every side)", n_captures=8, pan_step_deg=0.75, scene="seabed", holder="table",
+           cloud_format=".npy"),
+    Preset("drift", "one capture's sphere drifts 8 cm during its scan (frames recorded during the scan; "
+           "for bag round trips and the target-motion check)", n_captures=6, pan_step_deg=1.0, drift_m=0.08),
+]
+
+_LIST += [
+    Preset("clutter", "dry textured room (brick wall, tiled floor, furniture), a matte foam ball of any "
+           "colour on a stick that hides part of its outline or resting on a block; no background frames",
+           n_captures=8, pan_step_deg=0.75, scene="room", n_backgrounds=0, cloud_format=".npy"),
+    Preset("turbid", "turbid water: strong attenuation and veil, blur; contrast falls with distance",
+           n_captures=9, pan_step_deg=0.75, turbidity=0.5),
 ]
 
 PRESETS: dict[str, Preset] = {p.name: p for p in _LIST}

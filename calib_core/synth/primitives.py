@@ -18,10 +18,16 @@ INF = np.inf
 
 @dataclass(frozen=True)
 class Material:
-    """Optical albedo (RGB 0-1) and acoustic reflectivity (0-1)."""
+    """Optical albedo (RGB 0-1) and acoustic reflectivity (0-1); optionally a procedural
+    texture (:mod:`calib_core.synth.textures`: "brick", "tiles", "noise", "foam") that
+    modulates the albedo in camera images (the sonar ignores it)."""
 
     albedo: tuple[float, float, float] = (0.5, 0.5, 0.5)
     reflectivity: float = 0.5
+    texture: str = ""
+    texture_scale_m: float = 0.2
+    texture_contrast: float = 0.5
+    texture_seed: int = 0
 
 
 def _vec(v) -> np.ndarray:

@@ -1,0 +1,55 @@
+"""Operator-readable detection problems, phrased once for the report, the CLI and the workbench.
+
+Detectors put a ``reason`` into every entry they could not fill ("no round outline",
+"sphere cut by the image border", "outline 40 % hidden or too faint at (u, v)", "two round
+objects: (u, v) and (u, v)", ...). These helpers turn entries and residuals into the short
+lines the shells show, and group reasons by kind (numbers and places dropped) for counts.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from collections import Counter
+
+# a detection whose reprojection misses it by more than this is shown as a problem (px)
+RESIDUAL_PROBLEM_PX = 5.0
+
+
+def reason_kind(reason: str) -> str:
+    """A reason without its numbers and places: "outline 40 % hidden ... at (3, 4)" ->
+    "outline % hidden ..."; "two round objects: (..) and (..)" -> "two round objects"."""
+    prefix, r = "", reason
+    m = re.match(r"^(image|sonar): (.*)$", reason)
+    if m:  # the solver's "image: <detector reason>"
+        prefix, r = m.group(1) + ": ", m.group(2)
+    r = r.split(" at (")[0].split(":")[0]
+    r = re.sub(r"\(?-?\d+(\.\d+)?\)?", "", r)
+    return prefix + (re.sub(r"\s+", " ", r).strip() or reason)
+
+
+def entry_problem(sensor: str, entry) -> str | None:
+    """"k1: sphere cut by the image border" for an entry without a centre, else None."""
+    if not isinstance(entry, dict):
+        return None
+    if entry.get("status") == "rejected":
+        return f"{sensor}: rejected by the operator"
+    if entry.get("center") is None:
+        return f"{sensor}: {entry.get('reason') or 'not found'}"
+    return None
+
+
+def residual_problem(sensor: str, residual_px) -> str | None:
+    """"k1: detection 389 px from the calibrated reprojection" when it is large, else None."""
+    if residual_px is None:
+        return None
+    r = math.hypot(*residual_px)
+    if r <= RESIDUAL_PROBLEM_PX:
+        return None
+    return f"{sensor}: detection {r:.0f} px from the calibrated reprojection (wrong object or moved target?)"
+
+
+def count_reasons(reasons) -> str:
+    """"no round outline: 2, sphere cut by the image border: 1" (most common first)."""
+    c = Counter(reason_kind(r) for r in reasons if r)
+    return ", ".join(f"{k}: {n}" for k, n in c.most_common())

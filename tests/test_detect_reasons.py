@@ -1,0 +1,26 @@
+"""Operator-readable detection problems (calib_core.detect.reasons)."""
+
+from calib_core.detect.reasons import count_reasons, entry_problem, reason_kind, residual_problem
+
+
+def test_reason_kind_drops_numbers_and_places():
+    assert reason_kind("outline 40 % hidden or too faint at (12, 34)") == "outline % hidden or too faint"
+    assert reason_kind("two round objects: (1, 2) and (3, 4)") == "two round objects"
+    assert reason_kind("image: sphere cut by the image border") == "image: sphere cut by the image border"
+    assert reason_kind("image: outline not round (edge RMS 2.9 px) at (609, 125)") == "image: outline not round (edge RMS px)"
+
+
+def test_entry_and_residual_problems():
+    assert entry_problem("k1", {"status": "auto", "reason": "no round outline"}) == "k1: no round outline"
+    assert entry_problem("k1", {"status": "auto"}) == "k1: not found"
+    assert entry_problem("k1", {"status": "rejected", "center": [1, 2]}) == "k1: rejected by the operator"
+    assert entry_problem("k1", {"status": "auto", "center": [1, 2]}) is None
+    assert entry_problem("k1", None) is None
+    assert residual_problem("k1", [3.0, 2.0]) is None
+    assert residual_problem("k1", [389.0, 0.0]).startswith("k1: detection 389 px from")
+
+
+def test_count_reasons():
+    s = count_reasons(["image: no round outline", "image: no round outline",
+                       "image: two round objects: (1, 2) and (3, 4)", ""])
+    assert s == "image: no round outline: 2, image: two round objects: 1"
