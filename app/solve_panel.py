@@ -11,7 +11,7 @@ import numpy as np
 
 from app.common import guarded, notify
 from calib_core.markup import escape_md
-from calib_core.solve.summary import pose_rows, residual_rows, scale_line, table_i_rows
+from calib_core.solve.summary import consistency_lines, pose_rows, residual_rows, scale_line, table_i_rows
 
 BAR_RGB = [(255, 120, 0), (0, 150, 150), (150, 60, 220), (120, 120, 0)]
 
@@ -103,6 +103,8 @@ def _describe_full(cal: dict) -> str:
     out = ["**Pose T_cam_sonar** (sonar origin in the camera frame)", "",
            md_table(["", *[r[0] for r in rows]], [[c, *[r[i] for r in rows]] for i, c in enumerate(cols) if i > 0]),
            "", f"**Range scale**: {escape_md(scale_line(cal))}"]
+    out += ["", *[f"**Consistency**: {escape_md(line)}" for line in consistency_lines(cal)
+                  if line not in (cal.get("warnings") or [])]]
     for cam in cal["cameras"]:
         cols, rows = residual_rows(cal, cam)
         keep = [cols.index(c) for c in ("capture", "used", "residual px", "Mahalanobis", "flags")]
@@ -151,7 +153,7 @@ class SolvePanel:
 
     def options(self) -> dict:
         """The options dict 'sonarcal calibrate' builds from its flags (same defaults)."""
-        return {"estimate_scale": bool(self.scale.value), "robust": None if self.robust.value == "none" else self.robust.value,
+        return {"estimate_scale": True if self.scale.value else None, "robust": None if self.robust.value == "none" else self.robust.value,
                 "detect": True, "leave_one_out": True}
 
     def job_finished(self, name: str) -> None:
