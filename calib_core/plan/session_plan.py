@@ -1,8 +1,10 @@
 """Plan the next captures of a session: detections -> per-camera solves -> suggestions.
 
 Each camera with at least 4 usable correspondences is solved as ``sonarcal calibrate`` solves it
-independently (:func:`calib_core.solve.single.solve_camera`, no leave-one-out); its reported
-covariance (already multiplied by max(1, variance factor)) is the "now" figure. A camera with
+independently (:func:`calib_core.solve.single.solve_camera`, no leave-one-out, range scale held
+at 1); its reported covariance (already multiplied by max(1, variance factor)) is the "now"
+figure. When ``sonarcal calibrate`` also estimates the range scale, or solves two cameras jointly
+through a stereo transform, its reported pose sigma can differ from this one. A camera with
 3 correspondences uses the pose in ``results/calibration.json`` when there is one. The sonar
 field comes from the session's clouds (see :func:`field_from_session`); the working range
 defaults to the captures' ranges widened by 25 % each way.
@@ -73,7 +75,7 @@ def _camera_state(session, detections, cam: str, calibration: dict | None):
     if n >= 4:
         cd = camera_data(cam, model, corr.capture_ids, corr.uv_px, corr.cov_uv_px2, corr.X_sonar_m, corr.cov_X_m2)
         try:
-            sol = solve_camera(cd, loo=False)
+            sol = solve_camera(cd, estimate_scale=False, loo=False)  # the planner plans the pose, scale at 1
         except SessionError as e:
             return None, e.problem
         inflate = max(1.0, sol.variance_factor) if sol.dof > 0 else 1.0
