@@ -43,6 +43,7 @@ class Workbench:
         from app.flags import Diagnoser, FlagsPanel
         from app.fused import FusedPanel
         from app.images import ImagePanels
+        from app.plan_panel import PlanPanel
         from app.review import ReviewPanel
         from app.scene3d import Scene3D
         from app.session_panel import SessionPanel
@@ -82,6 +83,7 @@ class Workbench:
         self.tab_view = tabs.add_tab("View")
         self.tab_fused = tabs.add_tab("Fused")
         self.tab_session = tabs.add_tab("Session")
+        self.tab_plan = tabs.add_tab("Plan")
 
         self.bus = self.state.bus
         self.scene3d = Scene3D(self)
@@ -91,6 +93,7 @@ class Workbench:
         self.solve = SolvePanel(self)
         self.fused = FusedPanel(self)
         self.session_panel = SessionPanel(self)
+        self.plan = PlanPanel(self, self.tab_plan)
         from app.motion_panel import MotionPanel  # the target-motion track of an imported session
 
         self.motion_panel = MotionPanel(self)
