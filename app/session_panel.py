@@ -56,7 +56,10 @@ class SessionPanel:
         """A complete upload streamed to ``path`` (deleted here): unpack it and open it."""
         client = self.wb.server.get_clients().get(client_id)
         try:
-            root = safe_unpack_zip(path, self.wb.uploads_dir, label=name or "upload.zip")
+            try:
+                root = safe_unpack_zip(path, self.wb.uploads_dir, label=name or "upload.zip")
+            finally:  # the archive is not needed once unpacked (or refused)
+                path.unlink(missing_ok=True)
             try:
                 self.wb.open_session(root)
             except BaseException:
@@ -65,8 +68,6 @@ class SessionPanel:
         except Exception as e:  # a bad archive or session: one notice, the server carries on
             notify(self.wb.server, client, "Could not open the session", error_text(e))
             return
-        finally:
-            path.unlink(missing_ok=True)
         notify(self.wb.server, None, "Session uploaded", f"{name}: {self.wb.state.session.name}", color="green", seconds=4)
 
     def _on_refuse(self, client_id, name: str, problem: str) -> None:
