@@ -65,4 +65,8 @@ def run(args) -> int:
     if data.beam_width_deg:
         console.print(f"sonar effective beam width {data.beam_width_deg:.3f} deg (session.yaml: {session.beam_width_deg:g} deg)")
     console.print(f"wrote {session.root / 'detections.yaml'}; {missing} detection(s) not found")
+    from calib_core.diagnose import diagnose_session
+
+    for f in diagnose_session(data, dets):  # the workbench's flags, in the same words
+        err_console.print(f"flag: {f.text}", markup=False)
     return 0
