@@ -128,10 +128,13 @@ def _run_pool(data, todo, progress, n: int, beam_ids: list, beam_detections: dic
 
     from calib_core.pipeline import beam_capture_ids
 
-    _prepare(data, todo)
+    from multiprocessing import forkserver
+
     ctx = mp.get_context("forkserver")
     ctx.set_forkserver_preload(["calib_core.pipeline", "calib_core.detect.image", "calib_core.detect.sonar",
                                 *_cloud_readers(data, todo)])
+    forkserver.ensure_running()  # the server imports the detectors on the other core while we prepare
+    _prepare(data, todo)
     results: list = [None] * len(todo)
     if progress:
         progress(0, len(todo), f"detecting in {n} processes")
