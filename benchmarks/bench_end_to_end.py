@@ -40,7 +40,7 @@ def detection_counts(gt: dict, dets: dict, cam: str, used: set, tol_px: float = 
         truth = _image_truth(gt, cid, cam)
         e = d.get(cam) or {}
         uv = e.get("center")
-        off = (None if uv is None or "center_uv_px" not in truth
+        off = (None if uv is None or truth.get("center_uv_px") is None
                else float(np.hypot(*(np.asarray(uv, float) - truth["center_uv_px"]))))
         whole = truth.get("visible") and truth.get("in_image") and (truth.get("occluded_fraction") or 0) < 0.05
         if whole:
