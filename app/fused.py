@@ -15,6 +15,7 @@ from calib_core.errors import SessionError
 from calib_core.markup import escape_md
 
 UNCOLOURED = (90, 90, 90)
+FUSED_POINT_SIZE_M = 0.02
 
 
 class FusedPanel:
@@ -35,6 +36,7 @@ class FusedPanel:
         self.show.on_update(guarded(wb.server)(lambda e: self._visibility()))
         self.node = None
         self.fused_id: str | None = None
+        wb.refresher.on("selection", self.follow_selection)
 
     def rebuild(self) -> None:
         s = self.wb.state.session
@@ -45,6 +47,7 @@ class FusedPanel:
         self.capture.options = tuple(c.id for c in s.captures)
         self.show.value = False
         self.info.content = ""
+        self.wb.state.bus.publish("fused", cid=None)
 
     def colour(self, cid: str) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[str]]:
         """(points (N,3) cloud frame, colours (N,3) uint8, coloured (N,) bool, cameras used)."""
@@ -73,7 +76,7 @@ class FusedPanel:
         sc = self.wb.server.scene
         if self.node is not None:
             self.node.remove()
-        self.node = sc.add_point_cloud("/fused", P.astype(np.float32), colours, point_size=float(self.wb.scene3d.point_size.value),
+        self.node = sc.add_point_cloud("/fused", P.astype(np.float32), colours, point_size=FUSED_POINT_SIZE_M,
                                        precision="float32", point_shape="circle")
         self.fused_id = cid
         text = (f"{int(coloured.sum())} of {len(P)} points coloured from {', '.join(cams)}"
@@ -84,7 +87,12 @@ class FusedPanel:
         notify(self.wb.server, event.client, "Fused cloud ready", f"{cid}: {text}", color="green", seconds=4)
 
     def _visibility(self) -> None:
+        """One cloud on screen: the fused one replaces the plain clouds while it is shown."""
         if self.node is not None:
             self.node.visible = bool(self.show.value)
-        self.wb.scene3d.hidden = {self.fused_id} if (self.show.value and self.fused_id) else set()
-        self.wb.refresher.mark("clouds")
+        self.wb.state.bus.publish("fused", cid=self.fused_id if (self.show.value and self.node is not None) else None)
+
+    def follow_selection(self) -> None:
+        st = self.wb.state
+        if st.selected is not None and self.capture.value != st.selected and st.selected in self.capture.options:
+            self.capture.value = st.selected

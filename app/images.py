@@ -18,12 +18,26 @@ import cv2
 import numpy as np
 
 from app.common import client_tag, guarded, notify, pose_wxyz_position
+from app.scene3d import camera_pose
 from calib_core import fusion
 from calib_core.pipeline import CLICK_SIGMA_IMAGE_PX, refit_image
 
 MASK_RGB = (0, 255, 0)
 BOARD_MAX_WIDTH = 1280
 PANEL_MAX_WIDTH = 640
+
+
+def click_message(cid: str, cam: str, entry: dict, refit_asked: bool) -> tuple[str, str, str]:
+    """(title, body, colour) of the notice after an image click: a failed refit is said plainly."""
+    c = entry["center"]
+    at = f"({c[0]:.1f}, {c[1]:.1f}) px"
+    if entry.get("refit"):
+        return f"{cid} {cam} corrected", f"refit near the click: centre at {at}; saved", "green"
+    if refit_asked:
+        why = entry.get("refit_reason") or "no sphere outline near the click"
+        return (f"{cid} {cam}: refit failed", f"{why}. The clicked pixel {at} is stored as the centre "
+                f"(uncertainty {CLICK_SIGMA_IMAGE_PX:.0f} px); click again or Undo", "yellow")
+    return f"{cid} {cam} corrected", f"clicked centre at {at}; saved", "green"
 
 
 def downscale(img: np.ndarray, max_width: int) -> np.ndarray:
@@ -45,21 +59,20 @@ class ImagePanels:
             self.mask_opacity = gui.add_slider("Mask opacity", min=0.0, max=1.0, step=0.05, initial_value=0.45)
             self.refit = gui.add_checkbox("Refit near a click", True,
                                           hint="Off: the clicked pixel itself becomes the corrected centre")
-            self.click_radius = gui.add_slider("Click radius (px)", min=5, max=400, step=1, initial_value=60,
-                                               hint="Search radius for the refit around a click")
-            self.board_depth = gui.add_slider("Image board distance (m)", min=0.1, max=3.0, step=0.05, initial_value=0.5)
+            self.board_depth = gui.add_slider("Image board distance (m)", min=0.1, max=3.0, step=0.05, initial_value=0.3)
         for h in (self.show_mask, self.mask_radius, self.mask_opacity, self.board_depth):
             h.on_update(lambda _e: wb.refresher.mark("overlay"))
         self.panels: dict = {}  # cam -> (gui image, view button)
         self.boards: dict = {}
         self._masks: OrderedDict = OrderedDict()
         self._bases: OrderedDict = OrderedDict()
-        self._centres: OrderedDict = OrderedDict()
         self._shown: dict = {}
-        self.viewing: dict = {}  # client id -> (camera, eye) after "View through"
-        for kind in ("selection", "detections", "calibration", "overlay"):
+        self.viewing = wb.state.modes.viewing  # client id -> (camera, eye) after "View through"
+        self.focus_cam: str | None = None  # while someone looks through a camera, other boards hide
+        for kind in ("selection", "detections", "calibration", "overlay", "flags"):
             wb.refresher.on(kind, self.refresh)
         wb.refresher.on("calibration", self.follow_views)
+        wb.state.bus.subscribe("focus", self.on_focus)
 
     # ---- building ----------------------------------------------------------
     def rebuild(self) -> None:
@@ -69,7 +82,6 @@ class ImagePanels:
         self.panels.clear()
         self._masks.clear()
         self._bases.clear()
-        self._centres.clear()
         self._shown.clear()
         for board in self.boards.values():
             board.remove()
@@ -104,19 +116,14 @@ class ImagePanels:
         return m
 
     def reprojected_centre(self, cid: str, cam: str):
-        """Raw pixel of the sonar sphere centre through the current calibration, or None."""
-        st = self.wb.state
-        cal, son = st.T_cam_sonar(cam), st.entry(cid, "sonar") or {}
-        if cal is None or son.get("center") is None:
-            return None
-        key = (cid, cam, st.cal_version, tuple(son["center"]))
-        if key not in self._centres:
-            T, s = cal
-            uv, _d, valid = fusion.project_cloud(np.asarray([son["center"]], float) / s, T, st.camera(cam))
-            self._centres[key] = uv[0] if valid[0] else None
-            while len(self._centres) > 256:
-                self._centres.popitem(last=False)
-        return self._centres[key]
+        """Where the sonar says the sphere is in ``cam``'s image: through the current calibration,
+        else through the consensus pose of a flag on this capture (None when neither)."""
+        uv = self.wb.state.reprojected_uv(cid, cam)
+        if uv is None:
+            f = self.wb.state.flag_for(cid, cam)
+            if f is not None and f.camera == cam and f.predicted_uv_px is not None:
+                return np.asarray(f.predicted_uv_px, float)
+        return uv
 
     def render(self, cid: str, cam: str) -> np.ndarray | None:
         """The full-resolution overlay image of one camera for one capture (None: no image)."""
@@ -195,8 +202,10 @@ class ImagePanels:
         for cam, (panel, _btn) in self.panels.items():
             e = {k: v for k, v in (st.entry(cid, cam) or {}).items() if k != "history"}
             son = (st.entry(cid, "sonar") or {}).get("center")
+            pred = self.reprojected_centre(cid, cam)
             key = (cid, st.cal_version, bool(self.show_mask.value), float(self.mask_radius.value),
-                   float(self.mask_opacity.value), float(self.board_depth.value), repr(e), repr(son))
+                   float(self.mask_opacity.value), float(self.board_depth.value), repr(e), repr(son),
+                   None if pred is None else tuple(np.round(pred, 2)), self.focus_cam)
             if self._shown.get(cam) == key:
                 continue  # nothing this camera shows has changed
             self._shown[cam] = key
@@ -222,14 +231,14 @@ class ImagePanels:
                 board.image = small
                 board.render_width, board.render_height = rw, rh
                 board.position = pos
-            board.visible = True
+            board.visible = self.focus_cam in (None, cam)
 
     # ---- interaction ----------------------------------------------------------
     def pixel_from_ray(self, cam: str, ray_origin, ray_direction):
         """Raw pixel (u, v) where a world ray meets camera ``cam``'s image board, or None."""
         model = self.wb.state.camera(cam)
         T_cam_board, rw, rh = self.board_geometry(cam)
-        T_world_board = self.wb.scene3d.camera_pose(cam) @ T_cam_board
+        T_world_board = camera_pose(self.wb.state, cam) @ T_cam_board
         R, t = T_world_board[:3, :3], T_world_board[:3, 3]
         o = R.T @ (np.asarray(ray_origin, float) - t)
         d = R.T @ np.asarray(ray_direction, float)
@@ -242,35 +251,54 @@ class ImagePanels:
             return None
         return float(u), float(v)
 
+    def clicked_camera(self, client_id, board_cam: str) -> str:
+        """The camera a click corrects: the one the client looks through, else the clicked board's."""
+        viewing = self.viewing.get(client_id)
+        return viewing[0] if viewing is not None else board_cam
+
     def on_board_click(self, event, cam: str) -> None:
-        if event.client_id in self.wb.review.picking:
+        if event.client_id in self.wb.state.modes.picking:
             return  # this click picks the sonar centre in 3D (the scene-wide handler)
+        cam = self.clicked_camera(event.client_id, cam)
         uv = self.pixel_from_ray(cam, event.ray_origin, event.ray_direction)
         if uv is None:
-            raise ValueError("the click missed the image")
+            raise ValueError(f"the click missed {cam}'s image")
         cid = self.wb.state.selected
         entry = self.correct_click(cid, cam, uv, client_tag(event))
-        how = "refit" if entry.get("refit") else "clicked centre"
-        c = entry["center"]
-        notify(self.wb.server, event.client, f"{cid} {cam} corrected",
-               f"{how} at ({c[0]:.1f}, {c[1]:.1f}) px; saved to detections.yaml", color="green", seconds=4)
+        title, body, colour = click_message(cid, cam, entry, bool(self.refit.value))
+        notify(self.wb.server, event.client, title, body, color=colour, seconds=6)
+
+    def expected_radius_px(self, cid: str, cam: str) -> float | None:
+        """Apparent sphere radius (px) to refit with: from the calibration and the sonar centre,
+        else the current detection's, else None (the detector's own range)."""
+        st = self.wb.state
+        cal, son = st.T_cam_sonar(cam), (st.entry(cid, "sonar") or {}).get("center")
+        if cal is not None and son is not None:
+            T, s = cal
+            z = float((T[:3, :3] @ (np.asarray(son, float) / s) + T[:3, 3])[2])
+            if z > 0:
+                return st.camera(cam).fx * st.session.sphere_radius_m / z
+        r = (st.entry(cid, cam) or {}).get("radius_px")
+        return float(r) if isinstance(r, (int, float)) and r > 0 else None
 
     def correct_click(self, cid: str, cam: str, uv, client: str) -> dict:
         """Correct camera ``cam``'s detection in capture ``cid`` from a click at raw pixel ``uv``."""
         st = self.wb.state
         if self.refit.value:
-            entry = refit_image(st.data, cid, cam, uv, float(self.click_radius.value))
+            entry = refit_image(st.data, cid, cam, uv, self.expected_radius_px(cid, cam))
+            entry["refit_asked"] = True
         else:
             s2 = CLICK_SIGMA_IMAGE_PX ** 2
             entry = {"center": [float(uv[0]), float(uv[1])], "cov_px2": [s2, 0.0, 0.0, s2],
-                     "method": "operator-click", "refit": False, "radius_px": float(self.click_radius.value)}
+                     "method": "operator-click", "refit": False, "refit_asked": False}
         st.correct(cid, cam, entry, client, action="click")
+        st.bus.publish("corrected", cid=cid, sensor=cam)
         return st.entry(cid, cam)
 
     def view_through(self, client, cam: str) -> None:
         """Put ``client``'s viewpoint in front of ``cam``'s image board, filling the view."""
         T_cam_board, rw, rh = self.board_geometry(cam)
-        T_world_cam = self.wb.scene3d.camera_pose(cam)
+        T_world_cam = camera_pose(self.wb.state, cam)
         R = T_world_cam[:3, :3]
         centre = T_world_cam[:3, :3] @ T_cam_board[:3, 3] + T_world_cam[:3, 3]
         d = T_cam_board[2, 3]
@@ -283,6 +311,24 @@ class ImagePanels:
             client.camera.look_at = centre
             client.camera.fov = float(2 * np.arctan(half))
         self.viewing[client.client_id] = (cam, eye)
+        if self.focus_cam != cam:
+            self.focus_cam = cam  # other cameras' boards would stand in front of this one
+            for other, board in self.boards.items():
+                board.visible = other == cam
+
+    def on_focus(self, client=None, cid=None, sensor=None, flag=None) -> None:
+        """A flag (or "Frame the selected capture") asks ``client`` to look at ``sensor``."""
+        if client is None:
+            return
+        cam = flag.camera if flag is not None and sensor != "sonar" else None
+        if cam is not None:
+            self.wb.refresher.mark("overlay")  # the selected capture's image (predicted position marked) first,
+            self.wb.refresher.wait_idle(10)  # drawn by the refresh thread (the one that draws boards)
+            self.view_through(client, cam)
+        else:
+            self.viewing.pop(client.client_id, None)
+            self.focus_cam = None
+            self.wb.refresher.mark("overlay")
 
     def follow_views(self) -> None:
         """Clients still looking through a camera keep doing so when its pose changes (a new solve)."""

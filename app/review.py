@@ -1,8 +1,11 @@
-"""Review panel: the capture list (worst first), navigation, accept/reject/undo, sonar corrections.
+"""Review panel: the capture list (flagged and worst first), navigation, accept/reject,
+undo/redo, sonar corrections.
 
-Residuals are the distance in pixels between the image detection and the sonar centre
-reprojected through the current calibration (calib_core.fusion.project_cloud), the same
-numbers the overlays show.
+Residuals are :meth:`app.state.WorkbenchState.residual_px`: the distance in pixels between the
+image detection and the sonar centre projected through the current calibration, computed as
+the solver computes its per-capture residual, so every panel shows the same number. Each cell
+is coloured good / doubtful / bad by :func:`calib_core.diagnose.wording.verdict` (thresholds
+stated under the table).
 """
 
 from __future__ import annotations
@@ -10,11 +13,46 @@ from __future__ import annotations
 import numpy as np
 
 from app.common import client_tag, guarded, notify
+from calib_core.diagnose import wording
 from calib_core.errors import SessionError
 from calib_core.markup import escape_md
 from calib_core.pipeline import refit_sonar
 
 ALL = "all sensors"
+
+
+NBSP = "\u00a0"
+COLOURS = {"good": "#1a9a3a", "doubtful": "#c98a00", "bad": "#d62728", "none": "#9a9a9a"}
+
+
+def dot(verdict: str) -> str:
+    """A coloured disc (a plain glyph: it shows without an emoji font)."""
+    return f'<span style="color:{COLOURS[verdict]}">●</span>'
+
+
+DOTS = {k: dot(k) for k in ("good", "doubtful", "bad")}
+
+
+def cell(c: dict | None) -> str:
+    """One review-table cell: verdict dot, status, score, residual (never wrapped mid-value)."""
+    if c is None:
+        return "-"
+    flagged = c.get("flag") is not None and c["status"] != "rejected"
+    if c["status"] in ("rejected", "missing") or not c["found"]:
+        mark = dot("none") if c["status"] in ("rejected", "missing") else DOTS["bad"]
+    else:
+        mark = DOTS[wording.verdict(c["score"], c["residual_px"], flagged)]
+    parts = [c["status"]]
+    if not c["found"] and c["status"] not in ("rejected", "missing"):
+        parts.append(f"(not found: {escape_md(c.get('reason') or 'no sphere')})")
+    elif c["score"] is not None:
+        parts.append(f"{c['score']:.2f}")
+    if c["residual_px"] is not None:
+        parts.append(f"· {c['residual_px']:.2f} px")
+    if flagged:
+        parts.append(f"⚠ {c['flag'].cause}")
+    tail = f" ({escape_md(c['reason'])})" if c.get("reason") and c["found"] else ""  # the detector's words
+    return mark + NBSP + NBSP.join(str(p).replace(" ", NBSP) for p in parts) + tail
 
 
 class ReviewPanel:
@@ -29,7 +67,8 @@ class ReviewPanel:
             self.sensor = gui.add_dropdown("Apply to", (ALL,), initial_value=ALL)
             self.accept = gui.add_button("Accept", color="green")
             self.reject = gui.add_button("Reject", color="red")
-            self.undo = gui.add_button("Undo")
+            self.undo = gui.add_button("Undo", hint="Undo the session's latest change (kept in detections.yaml)")
+            self.redo = gui.add_button("Redo", hint="Redo the latest undone change")
             self.details = gui.add_markdown("")
             with gui.add_folder("Correct the sonar centre", expand_by_default=False):
                 self.pick = gui.add_button("Pick sonar centre in 3D",
@@ -44,16 +83,19 @@ class ReviewPanel:
         self.accept.on_click(g(lambda e: self._set(e, "accepted")))
         self.reject.on_click(g(lambda e: self._set(e, "rejected")))
         self.undo.on_click(g(self._undo))
+        self.redo.on_click(g(self._redo))
         self.pick.on_click(g(self._start_pick))
         self.detect.on_click(g(lambda e: self.wb.start_detection(None, redetect_auto=True)))
         self.handle_on.on_update(lambda e: wb.refresher.mark("handle"))
         self.handle = None
-        self.picking: set = set()  # client ids whose next 3D click picks the sonar centre
+        self.picking = wb.state.modes.picking  # client ids whose next 3D click picks the sonar centre
         self._dragging = False
         self._order: list[str] = []
         for kind in ("detections", "calibration", "selection"):
             wb.refresher.on(kind, self.refresh)
         wb.refresher.on("handle", self.refresh_handle)
+        wb.refresher.on("flags", self.refresh)
+        wb.state.bus.subscribe("focus", self.on_focus)
 
     # ---- data ------------------------------------------------------------
     def rows(self) -> list[dict]:
@@ -66,23 +108,23 @@ class ReviewPanel:
             for sensor in st.sensors(cap.id):
                 e = st.entry(cap.id, sensor) or {}
                 status = e.get("status", "missing") if e else "missing"
-                res = None
-                if sensor != "sonar" and e.get("center") is not None and status != "rejected":
-                    uv = self.wb.images.reprojected_centre(cap.id, sensor)
-                    if uv is not None:
-                        res = float(np.linalg.norm(np.asarray(e["center"], float) - uv))
-                        row["residual"] = max(row["residual"] or 0.0, res)
+                res = st.residual_px(cap.id, sensor) if sensor != "sonar" else None
+                if res is not None:
+                    row["residual"] = max(row["residual"] or 0.0, res)
+                flag = st.flag_for(cap.id, sensor)
                 row["sensors"][sensor] = {"status": status, "score": e.get("score"), "residual_px": res,
-                                          "found": e.get("center") is not None}
+                                          "found": e.get("center") is not None, "reason": e.get("reason"),
+                                          "flag": flag}
                 if status == "rejected":
                     row["rejected"] = True
                 elif e.get("center") is None:
                     row["missing"] = True
                 if e.get("score") is not None:
                     row["score"] = min(row["score"], float(e["score"]))
+                row["flagged"] = row.get("flagged", False) or (flag is not None and status != "rejected")
             rows.append(row)
-        rows.sort(key=lambda r: (r["rejected"], not r["missing"], -(r["residual"] if r["residual"] is not None else -1.0),
-                                 r["score"]))
+        rows.sort(key=lambda r: (r["rejected"], not r.get("flagged"), not r["missing"],
+                                 -(r["residual"] if r["residual"] is not None else -1.0), r["score"]))
         return rows
 
     def order(self) -> list[str]:
@@ -107,6 +149,19 @@ class ReviewPanel:
         ch = self.wb.state.undo(client_tag(event))
         where = ", ".join(f"{c}/{s}" for c, s, _p, _n in ch.items)
         notify(self.wb.server, event.client, "Undone", f"{ch.action} on {where}", color="blue", seconds=3)
+
+    def _redo(self, event) -> None:
+        ch = self.wb.state.redo(client_tag(event))
+        where = ", ".join(f"{c}/{s}" for c, s, _p, _n in ch.items)
+        notify(self.wb.server, event.client, "Redone", f"{ch.action} on {where}", color="blue", seconds=3)
+
+    def on_focus(self, client=None, cid=None, sensor=None, flag=None) -> None:
+        """A flag was followed: make Accept/Reject act on the implicated sensor (a moved target: all)."""
+        if flag is None:
+            return
+        self.sensor.value = ALL if sensor in (None, "capture") else sensor
+        if sensor == "sonar" and not self.handle_on.value:
+            self.handle_on.value = True  # drag the handle to the sphere the image points at
 
     def _on_capture(self, event) -> None:
         if self.capture.value in {c.id for c in self.wb.state.session.captures}:
@@ -209,26 +264,13 @@ class ReviewPanel:
         if self.capture.value != sel:
             self.capture.value = sel
         cams = list(st.session.cameras)
+        lines = [f"| {'▶' if r['id'] == sel else ''} | {escape_md(r['id'])} | "
+                 + " | ".join(cell(r["sensors"].get(x)) for x in ["sonar", *cams]) + " |" for r in rows]
         head = "| | capture | sonar | " + " | ".join(escape_md(c) for c in cams) + " |\n|---|---|---|" + "---|" * len(cams) + "\n"
-        lines = []
-        for r in rows:
-            cells = []
-            for sensor in ["sonar", *cams]:
-                c = r["sensors"].get(sensor)
-                if c is None:
-                    cells.append("-")
-                    continue
-                txt = c["status"]
-                if not c["found"] and c["status"] not in ("rejected", "missing"):
-                    txt += " (not found)"
-                elif c["score"] is not None:
-                    txt += f" {c['score']:.2f}"
-                if c["residual_px"] is not None:
-                    txt += f" · {c['residual_px']:.1f} px"
-                cells.append(escape_md(txt))
-            mark = "▶" if r["id"] == sel else ""
-            lines.append(f"| {mark} | {escape_md(r['id'])} | " + " | ".join(cells) + " |")
-        self.table.content = "**Captures (worst first)**\n\n" + head + "\n".join(lines)
+        self.table.content = ("**Captures (worst first)**\n\n" + head + "\n".join(lines)
+                              + f"\n\n{DOTS['good']} good · {DOTS['doubtful']} doubtful · {DOTS['bad']} bad · "
+                              + f"{dot('none')} rejected/none. {wording.THRESHOLDS_NOTE}. "
+                              + f"Score: the detector's (0-1). {wording.RESIDUAL_LABEL}.")
         self.details.content = self._details(sel)
         self.refresh_handle()
 
@@ -239,8 +281,11 @@ class ReviewPanel:
             e = st.entry(cid, sensor) or {}
             c = e.get("center")
             where = "no centre" if c is None else "(" + ", ".join(f"{v:.4g}" for v in c) + ")"
-            why = f" ({e['reason']})" if e.get("reason") else ""
+            why = f" ({escape_md(e['reason'])})" if e.get("reason") else ""
             hist = e.get("history") or []
-            last = f"; last change {hist[-1]['time']} by {hist[-1]['client']}" if hist else ""
-            out.append("- " + escape_md(f"{sensor}: {e.get('status', 'missing')} {where}{why}{last}"))
+            last = f"; last change {escape_md(hist[-1].get('time'))} by {escape_md(hist[-1].get('client'))}" if hist else ""
+            out.append(f"- {escape_md(sensor)}: {e.get('status', 'missing')} {where}{why}{last}")
+        f = st.flag_for(cid)
+        if f is not None:
+            out.append(f"\n⚠ {escape_md(f.text)}")
         return "\n".join(out)

@@ -41,6 +41,18 @@ def camera_pose_in_cloud_frame(T_cam_sonar: np.ndarray, range_scale: float) -> n
     return T
 
 
+def camera_pose(state, cam: str) -> np.ndarray:
+    """World pose of a camera node: the calibration's, or an uncalibrated stand-in."""
+    cal = state.T_cam_sonar(cam)
+    if cal is not None:
+        return camera_pose_in_cloud_frame(*cal)
+    # uncalibrated: beside the sonar, looking along its +x (x forward, y left, z up), image down = -z
+    T = np.eye(4)
+    T[:3, :3] = np.array([[0.0, 0.0, 1.0], [-1.0, 0.0, 0.0], [0.0, -1.0, 0.0]])
+    T[1, 3] = -0.4 * (1 + list(state.session.cameras).index(cam))
+    return T
+
+
 class Scene3D:
     def __init__(self, wb):
         self.wb = wb
@@ -65,7 +77,9 @@ class Scene3D:
             h.on_update(lambda _e: wb.refresher.mark("clouds"))
         for h in (self.show_centres, self.show_rays, self.show_cams, self.show_gt):
             h.on_update(lambda _e: wb.refresher.mark("detections", "calibration"))
-        self.frame_btn.on_click(guarded(wb.server)(lambda e: self.home_view(e.client)))
+        self.frame_btn.on_click(guarded(wb.server)(lambda e: self._frame(e.client)))
+        wb.state.bus.subscribe("focus", self.on_focus)
+        wb.state.bus.subscribe("fused", self.on_fused)
         r = wb.refresher
         r.on("selection", self.refresh_clouds)
         r.on("clouds", self.refresh_clouds)
@@ -97,23 +111,50 @@ class Scene3D:
                 cb.on_update(lambda _e: self.wb.refresher.mark("clouds"))
                 self.cloud_toggles[cap.id] = cb
 
+    def _frame(self, client) -> None:
+        self.wb.state.bus.publish("focus", client=client, cid=self.wb.state.selected, sensor=None, flag=None)
+
+    def on_focus(self, client=None, cid=None, sensor=None, flag=None) -> None:
+        """Frame the capture for a sonar flag (or "Frame the selected capture"); mark where the
+        image says the sphere is (cyan) when a flag knows it."""
+        sc = self.wb.server.scene
+        where = getattr(flag, "predicted_sonar_m", None)
+        if where is not None:
+            sc.add_icosphere("/flag_predicted", radius=self.wb.state.session.sphere_radius_m, color=(0, 200, 230),
+                             wireframe=True, opacity=0.8, position=np.asarray(where, float))
+        else:
+            try:
+                sc.remove_by_name("/flag_predicted")
+            except Exception:  # nothing marked
+                pass
+        if client is not None and (sensor in (None, "sonar") or flag is None):
+            self.home_view(client)
+
+    def on_fused(self, cid=None) -> None:
+        """While a fused cloud is shown, the plain clouds step aside (one cloud on screen)."""
+        self.hidden = {c.id for c in self.wb.state.session.captures} if cid is not None else set()
+        self.wb.refresher.mark("clouds")
+
     def home_view(self, client) -> None:
-        """Frame the sonar origin and the selected capture (its sonar centre, else its cloud),
-        seen from behind, aside and above."""
+        """Frame the cameras and the selected capture (its sonar centre, else its cloud), seen from
+        behind the cameras, a little above and aside: the image boards face the viewer."""
         st = self.wb.state
         if st.session is None or st.selected is None or client is None:
             return
         son = (st.entry(st.selected, "sonar") or {}).get("center")
         target = np.asarray(son, float) if son is not None else np.median(st.cloud(st.selected).points_m, axis=0)
-        dist = max(1.0, float(np.linalg.norm(target)))
-        v = target / dist
-        side = np.cross(v, (0.0, 0.0, 1.0))
+        poses = [camera_pose(st, cam) for cam in st.session.cameras]
+        cams = np.mean([T[:3, 3] for T in poses], axis=0)
+        axis = np.mean([T[:3, 2] for T in poses], axis=0)
+        axis = axis / max(np.linalg.norm(axis), 1e-9)
+        dist = max(1.0, float(np.linalg.norm(target - cams)))
+        up = np.array([0.0, 0.0, 1.0])
+        side = np.cross(axis, up)
         side = side / np.linalg.norm(side) if np.linalg.norm(side) > 1e-6 else np.array([0.0, 1.0, 0.0])
-        mid = 0.5 * target
         with client.atomic():
-            client.camera.up_direction = (0.0, 0.0, 1.0)
-            client.camera.position = mid - 1.2 * dist * v + 0.9 * dist * side + np.array([0.0, 0.0, 0.9 * dist])
-            client.camera.look_at = mid
+            client.camera.up_direction = tuple(up)
+            client.camera.position = cams - 0.9 * dist * axis + 0.35 * dist * up + 0.25 * dist * side
+            client.camera.look_at = 0.5 * (cams + target)
 
     # ---- clouds --------------------------------------------------------------
     def _colours(self, cid: str, cloud, mode: str) -> np.ndarray:
@@ -179,7 +220,6 @@ class Scene3D:
             sc.add_icosphere("/selected_sphere", radius=0.01, visible=False)
         self._rays(dets)
         self._ground_truth(gt)
-        self.wb.review.refresh_handle()
 
     def _rays(self, dets: dict) -> None:
         sc = self.wb.server.scene
@@ -244,15 +284,7 @@ class Scene3D:
 
     # ---- cameras ---------------------------------------------------------------
     def camera_pose(self, cam: str) -> np.ndarray:
-        """World pose of a camera node: the calibration's, or an uncalibrated stand-in."""
-        cal = self.wb.state.T_cam_sonar(cam)
-        if cal is not None:
-            return camera_pose_in_cloud_frame(*cal)
-        # uncalibrated: beside the sonar, looking along its +x (x forward, y left, z up), image down = -z
-        T = np.eye(4)
-        T[:3, :3] = np.array([[0.0, 0.0, 1.0], [-1.0, 0.0, 0.0], [0.0, -1.0, 0.0]])
-        T[1, 3] = -0.4 * (1 + list(self.wb.state.session.cameras).index(cam))
-        return T
+        return camera_pose(self.wb.state, cam)
 
     def refresh_cameras(self) -> None:
         st = self.wb.state

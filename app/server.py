@@ -9,6 +9,8 @@ shows a notification in the page and the server carries on.
 from __future__ import annotations
 
 import logging
+import threading
+import time
 from pathlib import Path
 
 import viser
@@ -21,6 +23,8 @@ from calib_core.errors import SessionError
 from calib_core.markup import escape_md
 
 log = logging.getLogger("sonarcal.app")
+FIRST_CLIENT_WAIT_S = 2.0  # how long detection waits for a first page before starting anyway
+DETECT_GRACE_S = 1.0  # after the first page connects: let it receive the session first
 
 
 class Workbench:
@@ -36,8 +40,10 @@ class Workbench:
 
     def __init__(self, session_path=None, host: str = "127.0.0.1", port: int = 8080,
                  allowed_roots=None, uploads_dir=None, verbose: bool = False, token: str | None = "auto"):
+        from app.flags import Diagnoser, FlagsPanel
         from app.fused import FusedPanel
         from app.images import ImagePanels
+        from app.plan_panel import PlanPanel
         from app.review import ReviewPanel
         from app.scene3d import Scene3D
         from app.session_panel import SessionPanel
@@ -61,31 +67,41 @@ class Workbench:
         self.server.gui.main_panel.dock_right()  # beside the 3D view, so the view is never covered
         self.refresher = Refresher(on_error=lambda kind, e: notify(self.server, None, f"Display of {kind} failed", error_text(e)))
         self.jobs = JobRunner(on_progress=self._progress, on_error=self._job_error)
+        self._first_client = threading.Event()  # detection waits for the first page to load (or a moment)
+        self._detect_due = threading.Event()
+        self._detect_due.set()
 
         gui = self.server.gui
         self.title = gui.add_markdown("**sonarcal workbench**: no session open")
         self.progress_label = gui.add_markdown("", visible=False)
         self.progress = gui.add_progress_bar(0.0, visible=False, animated=True)
+        self.solve_button = gui.add_button(  # above the tabs: the review loop never switches tab to solve
+            "Solve", color="blue", hint="Detect what is not validated, solve every camera, save results/calibration.json")
         tabs = gui.add_tab_group()
         self.tab_review = tabs.add_tab("Review")
         self.tab_solve = tabs.add_tab("Solve")
         self.tab_view = tabs.add_tab("View")
         self.tab_fused = tabs.add_tab("Fused")
         self.tab_session = tabs.add_tab("Session")
+        self.tab_plan = tabs.add_tab("Plan")
 
+        self.bus = self.state.bus
         self.scene3d = Scene3D(self)
         self.images = ImagePanels(self)
+        self.flags = FlagsPanel(self)
         self.review = ReviewPanel(self)
         self.solve = SolvePanel(self)
         self.fused = FusedPanel(self)
         self.session_panel = SessionPanel(self)
+        self.plan = PlanPanel(self, self.tab_plan)
         from app.motion_panel import MotionPanel  # the target-motion track of an imported session
 
         self.motion_panel = MotionPanel(self)
 
         self.refresher.on("session", self._on_session)
         self.refresher.on("after-session", self._after_session)
-        self.state.subscribe(self.refresher.mark)
+        self.state.subscribe(self.refresher.mark)  # every named state event asks for a refresh of that name
+        self.diagnoser = Diagnoser(self.state)
         self.server.on_client_connect(self._on_connect)
         if session_path is not None:
             try:
@@ -121,6 +137,9 @@ class Workbench:
         try:
             self.refresher.wait_idle(10)
             self.refresher.stop()
+            diagnoser = getattr(self, "diagnoser", None)
+            if diagnoser is not None:
+                diagnoser.stop()
             self.server.stop()
         finally:
             self.uploads.cleanup()
@@ -129,7 +148,9 @@ class Workbench:
     def wait_idle(self, timeout: float = 60.0) -> bool:
         """Block until running jobs and pending display refreshes are done (tests, benchmarks)."""
         self.refresher.wait_idle(timeout)  # a session refresh may start the detection job
+        self._detect_due.wait(timeout)
         self.jobs.join(timeout)
+        self.diagnoser.wait_idle(timeout)
         return self.refresher.wait_idle(timeout)
 
     # ---- session -----------------------------------------------------------
@@ -176,13 +197,29 @@ class Workbench:
             self.scene3d.home_view(client)
 
     def _after_session(self) -> None:
-        """Once the new session is on screen, detect what detections.yaml lacks (in the background)."""
+        """Once the new session is on screen, detect what detections.yaml lacks (in the background),
+        after the first page has received the session: detection competes for the same CPU."""
         pending = self.state.missing() if self.state.session is not None else []
-        if pending and self.jobs.running is None:
-            self.start_detection(pending, redetect_auto=False)
+        if not pending or self.jobs.running is not None:
+            return
+        self._detect_due.clear()
+        threading.Thread(target=self._deferred_detection, args=(pending, self.state.session),
+                         name="workbench-detect-later", daemon=True).start()
+
+    def _deferred_detection(self, pending, session) -> None:
+        try:
+            if self._first_client.wait(FIRST_CLIENT_WAIT_S):
+                time.sleep(DETECT_GRACE_S)
+            if self.state.session is session and self.jobs.running is None:
+                self.start_detection(pending, redetect_auto=False)
+        except Exception as e:  # reported in the page
+            self._job_error("detection", e)
+        finally:
+            self._detect_due.set()
 
     def _on_connect(self, client: viser.ClientHandle) -> None:
         self.scene3d.home_view(client)
+        self._first_client.set()
 
     # ---- jobs --------------------------------------------------------------
     def _progress(self, name: str, pct: float, label: str) -> None:

@@ -14,6 +14,17 @@ from calib_core.markup import escape_md
 from calib_core.results import calibration_path
 
 
+def calibration_line(cal: dict | None) -> str:
+    """The Session tab's calibration line: what is in use now."""
+    if not cal:
+        return "none yet (press Solve)"
+    cams = cal.get("cameras") or {}
+    rms = ", ".join(f"{c} RMS {v['rms_reprojection_px']:.2f} px" for c, v in cams.items()
+                    if isinstance(v.get("rms_reprojection_px"), (int, float)))
+    when = cal.get("created") or cal.get("timestamp") or ""
+    return f"results/calibration.json ({rms or ', '.join(cams)}){' ' + str(when) if when else ''}"
+
+
 class SessionPanel:
     def __init__(self, wb):
         self.wb = wb
@@ -32,6 +43,7 @@ class SessionPanel:
                                        on_file=self._on_upload, on_refuse=self._on_refuse)
         self.dl_cal.on_click(guarded(wb.server, "Download failed")(lambda e: self._download(e, "calibration")))
         self.dl_det.on_click(guarded(wb.server, "Download failed")(lambda e: self._download(e, "detections")))
+        wb.refresher.on("calibration", self.refresh)
 
     def _open_path(self, event) -> None:
         text = self.path.value.strip()
@@ -44,7 +56,10 @@ class SessionPanel:
         """A complete upload streamed to ``path`` (deleted here): unpack it and open it."""
         client = self.wb.server.get_clients().get(client_id)
         try:
-            root = safe_unpack_zip(path, self.wb.uploads_dir, label=name or "upload.zip")
+            try:
+                root = safe_unpack_zip(path, self.wb.uploads_dir, label=name or "upload.zip")
+            finally:  # the archive is not needed once unpacked (or refused)
+                path.unlink(missing_ok=True)
             try:
                 self.wb.open_session(root)
             except BaseException:
@@ -53,8 +68,6 @@ class SessionPanel:
         except Exception as e:  # a bad archive or session: one notice, the server carries on
             notify(self.wb.server, client, "Could not open the session", error_text(e))
             return
-        finally:
-            path.unlink(missing_ok=True)
         notify(self.wb.server, None, "Session uploaded", f"{name}: {self.wb.state.session.name}", color="green", seconds=4)
 
     def _on_refuse(self, client_id, name: str, problem: str) -> None:
@@ -77,7 +90,7 @@ class SessionPanel:
                  f"- sonar: {escape_md(s.sonar_model or '-')}; sound speed {s.sound_speed_m_s or '-'} m/s",
                  f"- cameras: {escape_md(', '.join(s.cameras))}; captures: {len(s.captures)}",
                  f"- ground truth: {'yes (magenta in 3D)' if self.wb.state.ground_truth else 'no'}",
-                 f"- calibration: {'results/calibration.json' if cal else 'none yet'}"]
+                 f"- calibration: {calibration_line(cal)}"]
         if s.measured_m:
             lines.append("- measured: " + escape_md(json.dumps(s.measured_m, ensure_ascii=False)))
         self.info.content = "\n".join(lines)

@@ -2,8 +2,10 @@
 
 Pure Python (no viser): every browser client works on the one :class:`WorkbenchState`
 of the server. Each change is made under one lock, saved at once to
-``detections.yaml`` (atomically, via calib_core) and recorded twice: in the entry's
-``history`` list (time, action, status, center, client) and on the undo stack.
+``detections.yaml`` (atomically, via calib_core) and recorded in each touched entry's
+``history`` list (time, action, status, center, client, change number, previous content).
+Undo and redo are replayed from those records (calib_core.history), so they survive reloads
+and restarts and are shared by every client.
 All geometry and computation are calib_core's; this module only holds and routes data.
 """
 
@@ -12,9 +14,9 @@ from __future__ import annotations
 import contextlib
 import copy
 import dataclasses
-import itertools
 import os
 import threading
+import zlib
 from collections import OrderedDict
 from pathlib import Path
 from typing import Callable
@@ -26,26 +28,69 @@ from calib_core.detections import (
     now_iso,
     save_detections,
 )
+from calib_core import history
 from calib_core.errors import SessionError
 from calib_core.results import calibration_path, load_calibration, save_calibration
 from calib_core.session import Session, load_session
 
 SENSOR_SONAR = "sonar"
+RESTORED_MISSING = "restored_missing"  # an undo back to "no entry": detect afresh
+
+
+EVENTS = {
+    "session": "a session was opened (panels rebuild)",
+    "detections": "detections.yaml changed (any entry, any client or process)",
+    "calibration": "the calibration in use changed (a Solve, or opening a session)",
+    "selection": "another capture was selected",
+    "flags": "the diagnosis of suspicious entries changed (calib_core.diagnose)",
+    "corrected": "an operator corrected one entry (cid=, sensor=)",
+    "fused": "the fused cloud shown changed (cid= or None)",
+    "focus": "a client asked to look at one sensor of one capture (client=, cid=, sensor=)",
+}
+
+
+class EventBus:
+    """Named state events (:data:`EVENTS`): panels subscribe to what they show and publish what
+    they change, instead of calling each other. ``subscribe("*", fn)`` gets ``fn(name)`` for
+    every event; a named subscription gets ``fn(**payload)``."""
+
+    def __init__(self):
+        self._subs: dict[str, list[Callable]] = {}
+        self._lock = threading.Lock()
+
+    def subscribe(self, name: str, fn: Callable) -> None:
+        if name != "*" and name not in EVENTS:
+            raise KeyError(f"unknown event {name!r} (known: {', '.join(EVENTS)})")
+        with self._lock:
+            self._subs.setdefault(name, []).append(fn)
+
+    def publish(self, name: str, **payload) -> None:
+        if name not in EVENTS:
+            raise KeyError(f"unknown event {name!r}")
+        with self._lock:
+            named, every = list(self._subs.get(name, [])), list(self._subs.get("*", []))
+        for fn in named:
+            fn(**payload)
+        for fn in every:
+            fn(name)
+
+
+@dataclasses.dataclass
+class ClientModes:
+    """Per-browser interaction modes shared by the panels (keyed by viser client id)."""
+
+    picking: set = dataclasses.field(default_factory=set)  # next 3D click picks the sonar centre
+    viewing: dict = dataclasses.field(default_factory=dict)  # client -> (camera, eye) after "View through"
 
 
 @dataclasses.dataclass
 class Change:
-    """One operator action (possibly several entries), for undo."""
+    """One operator action (possibly several entries), as undo/redo report it."""
 
     id: int
     client: str
     action: str
     items: list  # [(capture_id, sensor, previous entry or None, new entry)]
-
-
-def _content(entry: dict | None) -> dict | None:
-    """An entry without its change records (what undo compares)."""
-    return None if entry is None else {k: v for k, v in entry.items() if k != "history"}
 
 
 class WorkbenchState:
@@ -68,23 +113,24 @@ class WorkbenchState:
         self.data = None  # calib_core.pipeline.SessionData: intrinsics/background caches
         self.version = 0
         self.cal_version = 0  # bumps whenever the calibration in use changes
-        self.undo_stack: list[Change] = []
         self.warnings: list[str] = []
-        self._ids = itertools.count(1)
-        self._listeners: list[Callable[[str], None]] = []
+        self.bus = EventBus()
+        self.modes = ClientModes()
+        self.flags: list = []  # calib_core.diagnose.Flag, newest diagnosis
+        self.flags_note = ""
+        self._centres: OrderedDict = OrderedDict()
         self._det_sig = None
         self._images: OrderedDict = OrderedDict()
         self._clouds: OrderedDict = OrderedDict()
         self._cloud_cache = cloud_cache
 
-    # ---- listeners -------------------------------------------------------
+    # ---- events ------------------------------------------------------------
     def subscribe(self, fn: Callable[[str], None]) -> None:
-        """``fn(kind)`` runs after each change; kind is session/detections/calibration/selection."""
-        self._listeners.append(fn)
+        """``fn(kind)`` runs after every event (see :data:`EVENTS`)."""
+        self.bus.subscribe("*", fn)
 
     def _emit(self, kind: str) -> None:
-        for fn in list(self._listeners):
-            fn(kind)
+        self.bus.publish(kind)
 
     # ---- session -----------------------------------------------------------
     def check_allowed(self, path: Path) -> Path:
@@ -124,7 +170,8 @@ class WorkbenchState:
             self.data.adopt_beam_width(dets)
             self.cal_version += 1
             self.selected = session.captures[0].id
-            self.undo_stack.clear()
+            self.flags, self.flags_note = [], ""  # the diagnosis of the new session follows
+            self._centres.clear()
             self.warnings = warnings
             self._images.clear()
             self._clouds.clear()
@@ -206,9 +253,10 @@ class WorkbenchState:
         return [SENSOR_SONAR] + [c for c in self.session.cameras if c in cap.image_paths]
 
     def _disk_sig(self):
-        try:
-            st = detections_path(self.session).stat()
-            return (st.st_mtime_ns, st.st_size, st.st_ino)
+        try:  # the content's checksum too: an edit within the file system's mtime granularity counts
+            path = detections_path(self.session)
+            st = path.stat()
+            return (st.st_mtime_ns, st.st_size, st.st_ino, zlib.crc32(path.read_bytes()))
         except (FileNotFoundError, AttributeError):
             return None
 
@@ -242,36 +290,41 @@ class WorkbenchState:
             self._det_sig = sig
 
     def apply(self, updates: list[tuple[str, str, dict | None]], client: str, action: str) -> Change:
-        """Set several entries in one action; save at once; push one undo record.
+        """Set several entries in one action; save at once; record it in each entry's history.
 
-        ``updates`` holds (capture_id, sensor, new entry or None to remove). Each new
-        entry's ``history`` continues the old one with a record of this change.
+        ``updates`` holds (capture_id, sensor, new entry or None to clear). Each new entry's
+        ``history`` continues the old one with a numbered record of this change
+        (calib_core.history), from which undo and redo are replayed.
         """
         s = self.require()
         with self._file_lock():
             self._sync_from_disk()
-            items = []
-            for cid, sensor, new in updates:
+            for cid, sensor, _new in updates:
                 if sensor not in self.sensors(cid):
                     raise SessionError(s.manifest_path, f"capture {cid} has no sensor '{sensor}'")
-                prev = copy.deepcopy(self.detections.get(cid, {}).get(sensor))
-                if new is not None:
-                    new = copy.deepcopy(new)
-                    hist = list((prev or {}).get("history") or [])
-                    hist.append({"time": now_iso(), "action": action, "status": new.get("status"),
-                                 "center": new.get("center"), "client": str(client)})
-                    new["history"] = hist
-                    self.detections.setdefault(cid, {})[sensor] = new
-                else:
-                    self.detections.get(cid, {}).pop(sensor, None)
-                items.append((cid, sensor, prev, copy.deepcopy(new)))
-            save_detections(s, self.detections)
-            self._det_sig = self._disk_sig()
-            ch = Change(next(self._ids), str(client), action, items)
-            self.undo_stack.append(ch)
-            del self.undo_stack[:-200]
-            self.version += 1
-        self._emit("detections")
+            n = history.next_change_id(self.detections)
+            items = [self._put(cid, sensor, new, n, "do", action, client) for cid, sensor, new in updates]
+            return self._commit(Change(n, str(client), action, items), "detections")
+
+    def _put(self, cid: str, sensor: str, new: dict | None, n: int, kind: str, action: str, client: str,
+             of: int | None = None) -> tuple:
+        """Replace one entry (under the file lock), appending a change record; None leaves a placeholder
+        that asks for a fresh detection (its history, and so undo/redo, must survive)."""
+        prev = copy.deepcopy(self.detections.get(cid, {}).get(sensor))
+        new = copy.deepcopy(new) if new is not None else {"status": "auto", RESTORED_MISSING: True}
+        rec = {"time": now_iso(), "action": action, "status": new.get("status"), "center": new.get("center"),
+               "client": str(client), "change": n, "kind": kind, "before": history.content(prev)}
+        if of is not None:
+            rec["of"] = of
+        new["history"] = list((prev or {}).get("history") or []) + [rec]
+        self.detections.setdefault(cid, {})[sensor] = new
+        return (cid, sensor, prev, copy.deepcopy(new))
+
+    def _commit(self, ch: Change, kind: str) -> Change:
+        save_detections(self.session, self.detections)
+        self._det_sig = self._disk_sig()
+        self.version += 1
+        self._emit(kind)
         return ch
 
     def set_status(self, cid: str, status: str, client: str, sensors: list[str] | None = None) -> Change:
@@ -303,36 +356,41 @@ class WorkbenchState:
             raise SessionError(self.require().manifest_path, f"capture {cid} {sensor}: a correction needs a centre")
         return self.apply([(cid, sensor, dict(entry, status="corrected"))], client, action)
 
+    def history_stacks(self) -> tuple[list, list]:
+        """(done, undone) changes from detections.yaml (what Undo / Redo take next is last)."""
+        with self._file_lock():
+            self._sync_from_disk()
+            return history.stacks(self.detections)
+
     def undo(self, client: str | None = None) -> Change:
-        """Undo the latest change (of ``client`` when given); refuse if it was changed since."""
+        """Undo the session's latest change (whoever made it, in any earlier run)."""
+        return self._step_history("undo", client)
+
+    def redo(self, client: str | None = None) -> Change:
+        """Redo the latest undone change (a new change after an undo clears the redo list)."""
+        return self._step_history("redo", client)
+
+    def _step_history(self, kind: str, client: str | None) -> Change:
         s = self.require()
         with self._file_lock():
             self._sync_from_disk()
-            idx = next((i for i in range(len(self.undo_stack) - 1, -1, -1)
-                        if client is None or self.undo_stack[i].client == str(client)), None)
-            if idx is None:
-                raise SessionError(detections_path(s), "nothing to undo")
-            ch = self.undo_stack[idx]
-            for cid, sensor, _prev, new in ch.items:
-                if _content(self.detections.get(cid, {}).get(sensor)) != _content(new):
+            done, undone = history.stacks(self.detections)
+            stack = done if kind == "undo" else undone
+            if not stack:
+                raise SessionError(detections_path(s), f"nothing to {kind}")
+            ch = stack[-1]
+            restore = []
+            for cid, sensor, _rec in ch.items:
+                cur = self.detections.get(cid, {}).get(sensor)
+                rec, after = history.step_record(cur, ch.id, kind)
+                if rec is None or {"status": cur.get("status"), "center": cur.get("center")} != after:
                     raise SessionError(detections_path(s),
-                                       f"cannot undo '{ch.action}' on {cid}/{sensor}: it was changed since")
-            for cid, sensor, prev, _new in ch.items:
-                cur = self.detections.get(cid, {}).get(sensor) or {}
-                if prev is None:
-                    self.detections.get(cid, {}).pop(sensor, None)
-                    continue
-                restored = copy.deepcopy(prev)
-                restored["history"] = list(cur.get("history") or []) + [
-                    {"time": now_iso(), "action": f"undo {ch.action}", "status": prev.get("status"),
-                     "center": prev.get("center"), "client": str(client)}]
-                self.detections.setdefault(cid, {})[sensor] = restored
-            save_detections(s, self.detections)
-            self._det_sig = self._disk_sig()
-            del self.undo_stack[idx]
-            self.version += 1
-        self._emit("detections")
-        return ch
+                                       f"cannot {kind} '{ch.action}' on {cid}/{sensor}: it was changed since")
+                restore.append((cid, sensor, rec.get("before")))
+            n = history.next_change_id(self.detections)
+            items = [self._put(cid, sensor, before, n, kind, f"{kind} {ch.action}", str(client), of=ch.id)
+                     for cid, sensor, before in restore]
+            return self._commit(Change(ch.id, ch.client, ch.action, items), "detections")
 
     def _same_session(self, session) -> None:
         if session is not None and session is not self.session:
@@ -349,7 +407,13 @@ class WorkbenchState:
             self._sync_from_disk()
             auto_only = {cid: {k: e for k, e in sens.items() if e.get("status", "auto") == "auto"}
                          for cid, sens in auto.items()}
-            self.detections = merge_auto(self.detections, auto_only)
+            old = self.detections
+            self.detections = merge_auto(old, auto_only)
+            for cid, sens in auto_only.items():  # a fresh detection continues the entry's change records
+                for sensor in sens:
+                    hist = (old.get(cid, {}).get(sensor) or {}).get("history")
+                    if hist and sensor in self.detections.get(cid, {}):
+                        self.detections[cid][sensor]["history"] = hist
             save_detections(s, self.detections)
             self._det_sig = self._disk_sig()
             self.version += 1
@@ -359,7 +423,9 @@ class WorkbenchState:
         """Captures with a sensor that has no entry yet (to detect on load)."""
         s = self.require()
         with self.lock:
-            return [c.id for c in s.captures if any(x not in self.detections.get(c.id, {}) for x in self.sensors(c.id))]
+            return [c.id for c in s.captures
+                    if any(x not in self.detections.get(c.id, {}) or self.detections[c.id][x].get(RESTORED_MISSING)
+                           for x in self.sensors(c.id))]
 
     # ---- calibration -------------------------------------------------------
     def set_calibration(self, result: dict, session=None) -> Path:
@@ -400,3 +466,44 @@ class WorkbenchState:
         if isinstance(scale, dict):
             scale = scale.get("value", 1.0)
         return np.asarray(c["T_cam_sonar"], float), float(scale or 1.0)
+
+    def reprojected_uv(self, cid: str, cam: str):
+        """Raw pixel of capture ``cid``'s sonar centre through the current calibration, or None.
+
+        The one definition of a capture's residual: |image centre - this| (px), shown by every panel.
+        """
+        import numpy as np
+
+        cal, son = self.T_cam_sonar(cam), (self.entry(cid, SENSOR_SONAR) or {}).get("center")
+        if cal is None or son is None:
+            return None
+        key = (cid, cam, self.cal_version, tuple(son))
+        with self.lock:
+            if key in self._centres:
+                return self._centres[key]
+        T, s = cal
+        P = T[:3, :3] @ (np.asarray(son, float) / s) + T[:3, 3]  # as the solver's residual (calib_core.solve.model)
+        uv = self.camera(cam).distort((P[:2] / P[2])[None])[0] if P[2] > 1e-3 else None
+        with self.lock:
+            self._centres[key] = uv
+            while len(self._centres) > 512:
+                self._centres.popitem(last=False)
+        return self._centres[key]
+
+    def residual_px(self, cid: str, cam: str) -> float | None:
+        """|image centre - reprojected sonar centre| (px) with the current calibration, or None."""
+        import numpy as np
+
+        e = self.entry(cid, cam) or {}
+        if e.get("center") is None or e.get("status") == "rejected":
+            return None
+        uv = self.reprojected_uv(cid, cam)
+        return None if uv is None else float(np.linalg.norm(np.asarray(e["center"], float) - uv))
+
+    def flag_for(self, cid: str, sensor: str | None = None):
+        """The newest diagnosis's flag on capture ``cid`` (and ``sensor``: a camera, or "sonar"), or None."""
+        for f in list(self.flags):
+            if f.capture == cid and (sensor is None or f.sensor in (sensor, "capture")):
+                return f
+        return None
+

@@ -15,6 +15,10 @@ Formats (:data:`FORMATS`), each a text produced by :func:`export_text`:
 Frames: every pose published to ROS is the pose of the *child* frame in the *parent*
 frame, i.e. ``T_parent_child`` (it maps child-frame points into the parent frame).
 With the default ``parent="sonar"`` that is ``T_sonar_cam = inverse(T_cam_sonar)``.
+The published transforms always form one tree (one root, one parent per child, no
+cycle), as tf2 and urdfdom require: with ``parent="camera"`` the first exported camera
+is the root, ``sonar`` its child, and every further camera a child of ``sonar``
+(:func:`tree_edges`).
 The camera frame is the OpenCV/ROS optical frame (x right, y down, z forward), named
 ``<camera>_optical_frame`` unless given. Every file states its frame naming in a comment
 (or, for JSON, in its ``frames`` key). Numbers are written with full precision.
@@ -94,9 +98,38 @@ def _cameras(calibration: dict, camera: str | None) -> dict:
 
 
 def T_parent_child(calibration: dict, cam: str, frames: FrameNames) -> np.ndarray:
-    """The transform that ROS publishes for camera ``cam``: the child's pose in the parent."""
+    """The transform that ROS publishes for camera ``cam`` alone: the child's pose in the parent."""
     T_cam_sonar = np.asarray(calibration["cameras"][cam]["T_cam_sonar"], float)
     return invert_T(T_cam_sonar) if frames.parent == "sonar" else T_cam_sonar
+
+
+@dataclass(frozen=True)
+class Edge:
+    """One published transform: ``T_parent_child`` (child pose in parent) for camera ``cam``."""
+
+    cam: str
+    parent: str
+    child: str
+    T_parent_child: np.ndarray
+
+
+def tree_edges(calibration: dict, camera: str | None, frames: FrameNames) -> list[Edge]:
+    """The transforms to publish, always a tree rooted at one frame.
+
+    ``parent="sonar"``: sonar -> every camera. ``parent="camera"``: the first camera is the
+    root with sonar as its child, and the other cameras hang below sonar (a frame may have
+    only one parent, so sonar cannot be the child of two cameras).
+    """
+    frames.parent_child("probe")  # validates frames.parent
+    cams = list(_cameras(calibration, camera))
+    edges = []
+    for k, cam in enumerate(cams):
+        T_cam_sonar = np.asarray(calibration["cameras"][cam]["T_cam_sonar"], float)
+        if frames.parent == "camera" and k == 0:
+            edges.append(Edge(cam, frames.camera(cam), frames.sonar, T_cam_sonar))
+        else:
+            edges.append(Edge(cam, frames.sonar, frames.camera(cam), invert_T(T_cam_sonar)))
+    return edges
 
 
 def _frame_comment(frames: FrameNames, prefix: str = "# ") -> str:
@@ -106,6 +139,8 @@ def _frame_comment(frames: FrameNames, prefix: str = "# ") -> str:
         "Each transform is the pose of the child frame in the parent frame (T_parent_child, maps child points",
         f"into the parent); parent here is the {frames.parent} frame. T_cam_sonar maps sonar points into the camera.",
     ]
+    if frames.parent == "camera":
+        lines.append("One tree: the first camera is the root, sonar its child, further cameras children of sonar.")
     return "\n".join(prefix + s for s in lines) + "\n"
 
 
@@ -134,9 +169,8 @@ def to_json(calibration: dict, camera: str | None = None) -> str:
 def to_tf_static(calibration: dict, camera: str | None = None, frames: FrameNames = FrameNames()) -> str:
     """``rosrun tf2_ros static_transform_publisher x y z qx qy qz qw parent child``, one per camera."""
     text = "#!/bin/sh\n# sonarcal calibration as ROS static transforms.\n" + _frame_comment(frames) + _scale_note(calibration)
-    for cam in _cameras(calibration, camera):
-        parent, child = frames.parent_child(cam)
-        T = T_parent_child(calibration, cam, frames)
+    for e in tree_edges(calibration, camera, frames):
+        cam, parent, child, T = e.cam, e.parent, e.child, e.T_parent_child
         q = quaternion_xyzw(T[:3, :3])
         nums = [*T[:3, 3], *q]
         text += f"# {plain_line(cam)}: pose of '{child}' in '{parent}'\n"
@@ -149,9 +183,8 @@ def to_tf_static(calibration: dict, camera: str | None = None, frames: FrameName
 def to_tf2_yaml(calibration: dict, camera: str | None = None, frames: FrameNames = FrameNames()) -> str:
     """tf2 static transforms: ``transforms:`` list of geometry_msgs/TransformStamped."""
     tfs = []
-    for cam in _cameras(calibration, camera):
-        parent, child = frames.parent_child(cam)
-        T = T_parent_child(calibration, cam, frames)
+    for e in tree_edges(calibration, camera, frames):
+        parent, child, T = e.parent, e.child, e.T_parent_child
         q = quaternion_xyzw(T[:3, :3])
         tfs.append({
             "header": {"stamp": {"sec": 0, "nanosec": 0}, "frame_id": parent},
@@ -172,9 +205,8 @@ def to_urdf(calibration: dict, camera: str | None = None, frames: FrameNames = F
     q = sx.quoteattr
     body = []
     links = []
-    for cam in _cameras(calibration, camera):
-        parent, child = frames.parent_child(cam)
-        T = T_parent_child(calibration, cam, frames)
+    for e in tree_edges(calibration, camera, frames):
+        parent, child, T = e.parent, e.child, e.T_parent_child
         xyz = " ".join(_f(v) for v in T[:3, 3])
         rpy = " ".join(_f(v) for v in rpy_rad(T[:3, :3]))
         for name in (parent, child):

@@ -75,8 +75,12 @@ def draw_marker(image_rgb: np.ndarray, uv_px, colour=(255, 0, 0), kind: str = "c
             cv2.line(image_rgb, _pt(a), _pt(b), c, th, cv2.LINE_AA, 4)
     if label:
         fs = max(0.4, max(image_rgb.shape[:2]) / 1920 * 0.9)
-        (_, th_txt), _ = cv2.getTextSize(label, cv2.FONT_HERSHEY_SIMPLEX, fs, th)
-        org = (int(u + s + 4), int(v + s + 4 + th_txt) if label_below else int(v - s - 4))
+        (w_txt, th_txt), base = cv2.getTextSize(label, cv2.FONT_HERSHEY_SIMPLEX, fs, th)
+        x = u + s + 4 if u + s + 4 + w_txt <= image_rgb.shape[1] - 2 else u - s - 4 - w_txt  # flip at the edge
+        y = v + s + 4 + th_txt if label_below else v - s - 4
+        x = min(max(x, 2), max(image_rgb.shape[1] - w_txt - 2, 2))  # never cut at the image edge
+        y = min(max(y, th_txt + 2), max(image_rgb.shape[0] - base - 2, th_txt + 2))
+        org = (int(x), int(y))
         cv2.putText(image_rgb, label, org, cv2.FONT_HERSHEY_SIMPLEX, fs, (0, 0, 0), th + 2, cv2.LINE_AA)
         cv2.putText(image_rgb, label, org, cv2.FONT_HERSHEY_SIMPLEX, fs, c, th, cv2.LINE_AA)
     return image_rgb

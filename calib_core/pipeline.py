@@ -47,8 +47,10 @@ class SessionData:
         """Take the effective beam width an earlier detection run recorded in the sonar entries
         (their median), so refits after a reload use the same width as the first detection."""
         if self.beam_width_deg is None:
+            nominal = self.session.beam_width_deg or 1.0
             widths = [e["beam_width_deg"] for d in detections.values() for s, e in d.items()
-                      if s == "sonar" and isinstance(e.get("beam_width_deg"), (int, float))]
+                      if s == "sonar" and isinstance(e.get("beam_width_deg"), (int, float))
+                      and e.get("beam_width_nominal_deg", nominal) == nominal]
             if widths:
                 self.beam_width_deg = float(np.median(widths))
 
@@ -120,6 +122,7 @@ def detect_sonar_entry(data: SessionData | Session, capture_id: str, seed_center
     det = detect_sphere_in_cloud(points_sonar_m, s.sphere_radius_m, beam_width_deg=beam, seed_center_m=seed_center_m)
     entry = det.to_entry()
     entry["beam_width_deg"] = round(float(beam), 4)
+    entry["beam_width_nominal_deg"] = float(s.beam_width_deg or 1.0)
     return entry
 
 
@@ -133,18 +136,45 @@ def estimate_session_beam_width(data: SessionData, clouds: dict[str, np.ndarray]
     from calib_core.detect.sonar_beam import estimate_beam_width_deg
 
     ids = list(clouds)
-    centers = []
-    for cid in ids:
-        e = detections.get(cid, {}).get("sonar")
-        centers.append(np.asarray(e["center"], float) if is_operator_entry(e) and e.get("center") else None)
     nominal = data.session.beam_width_deg or 1.0
     est = estimate_beam_width_deg([clouds[c] for c in ids], data.session.sphere_radius_m, nominal_deg=nominal,
-                                  centers_sonar_m=centers)
+                                  centers_sonar_m=[_operator_center(detections, c) for c in ids])
+    return None if est.reason else float(est.beam_width_deg)
+
+
+def _operator_center(detections: dict, cid: str):
+    e = detections.get(cid, {}).get("sonar")
+    return np.asarray(e["center"], float) if is_operator_entry(e) and e.get("center") else None
+
+
+def beam_capture_ids(capture_ids: list[str]) -> list[str]:
+    """The captures the beam-width estimate looks at (spread over the session, at most its maximum)."""
+    from calib_core.detect.sonar_beam import MAX_CAPTURES, _spread_order
+
+    return [capture_ids[i] for i in _spread_order(len(capture_ids))][:MAX_CAPTURES]
+
+
+def beam_crop_of(data: SessionData, cid: str, detections: dict):
+    """One capture's crop for the beam-width estimate (sonar_beam.beam_crop), loaded from its cloud."""
+    from calib_core.detect.sonar_beam import beam_crop
+    from calib_core.io.clouds import load_cloud
+
+    P = load_cloud(data.session.capture(cid).cloud_path).points_m
+    return beam_crop(P, data.session.sphere_radius_m, data.session.beam_width_deg or 1.0,
+                     _operator_center(detections, cid))
+
+
+def beam_width_from_crops(data: SessionData, crops: list) -> float | None:
+    """The session's effective beam width from the crops of :func:`beam_crop_of`, or None."""
+    from calib_core.detect.sonar_beam import estimate_from_crops
+
+    est = estimate_from_crops(crops, data.session.sphere_radius_m, data.session.beam_width_deg or 1.0)
     return None if est.reason else float(est.beam_width_deg)
 
 
 def pending(session: Session, detections: dict, captures=None, redetect_auto: bool = True) -> list[tuple[str, str]]:
-    """(capture_id, sensor) pairs that need automatic detection."""
+    """(capture_id, sensor) pairs that need automatic detection (missing, or ``auto`` when
+    ``redetect_auto``; fingerprints are not looked at here, see :func:`stale`)."""
     out = []
     for cap in session.captures:
         if captures is not None and cap.id not in captures:
@@ -156,36 +186,69 @@ def pending(session: Session, detections: dict, captures=None, redetect_auto: bo
     return out
 
 
+def detection_inputs(data: SessionData, capture_id: str, sensor: str) -> tuple[list, dict]:
+    """(input files, parameters) of one automatic detection: what its fingerprint covers."""
+    s = data.session
+    cap = s.capture(capture_id)
+    if sensor == "sonar":
+        return [cap.cloud_path], {"sensor": "sonar", "sphere_diameter_m": s.sphere_diameter_m,
+                                  "beam_width_deg": round(float(data.effective_beam_width_deg), 4)}
+    spec = s.cameras[sensor]
+    paths = [cap.image_paths[sensor], spec.intrinsics_path] + ([spec.background_path] if spec.background_path else [])
+    return paths, {"sensor": "image", "sphere_diameter_m": s.sphere_diameter_m,
+                   "background_window_s": list(spec.background_window_s)}
+
+
+def stale(data: SessionData, detections: dict, todo: list[tuple[str, str]], strict: bool = False) -> list:
+    """The pairs of ``todo`` whose entry is not an ``auto`` entry with a matching fingerprint."""
+    from calib_core.fingerprint import matches
+
+    out = []
+    for cid, sensor in todo:
+        paths, params = detection_inputs(data, cid, sensor)
+        if not matches(detections.get(cid, {}).get(sensor), data.session.root, paths, params, strict=strict):
+            out.append((cid, sensor))
+    return out
+
+
+def _with_fingerprint(data: SessionData, cid: str, sensor: str, entry: dict, hint: dict | None = None) -> dict:
+    from calib_core.fingerprint import fingerprint
+
+    paths, params = detection_inputs(data, cid, sensor)
+    entry["fingerprint"] = fingerprint(data.session.root, paths, dict(params, **(hint or {})))
+    entry["detected_at"] = now_iso()
+    return entry
+
+
 def detect_session(session_or_data, detections: dict, progress: Progress | None = None,
-                   captures=None, redetect_auto: bool = True, estimate_beam_width: bool = True) -> dict:
+                   captures=None, redetect_auto: bool = True, estimate_beam_width: bool = True,
+                   reuse: bool = True, workers: int | None = None) -> dict:
     """Detect every missing (and, by default, every ``auto``) entry; return merged detections.
 
     Entries an operator set (accepted / corrected / rejected) are returned unchanged. With
-    ``estimate_beam_width`` and at least 3 clouds to detect, the sonar's effective beam width is
-    first estimated over the whole session (kept in ``SessionData.beam_width_deg``) and every
-    cloud is fitted with it; otherwise the manifest's ``sonar.beam_width_deg`` is used.
+    ``reuse``, an ``auto`` entry whose fingerprint (:mod:`calib_core.fingerprint`) still matches
+    is kept as it is. The sonar's effective beam width is estimated once per session (with
+    ``estimate_beam_width`` and at least 3 clouds) and recorded in every sonar entry; later runs
+    adopt the recorded width, so re-detection reproduces entries exactly. Detection runs in
+    ``workers`` processes (default: the CPU count; see :mod:`calib_core.parallel`); the beam
+    width estimate runs there too, alongside the image detections, which do not need it.
     """
-    from calib_core.io.clouds import load_cloud
+    from calib_core.parallel import run_detections
 
     data = _as_data(session_or_data)
+    data.adopt_beam_width(detections)
     todo = pending(data.session, detections, captures, redetect_auto)
     sonar_ids = [cid for cid, sensor in todo if sensor == "sonar"]
-    clouds = {cid: load_cloud(data.session.capture(cid).cloud_path).points_m for cid in sonar_ids}
-    if estimate_beam_width and data.beam_width_deg is None and len(clouds) >= 3:
-        if progress:
-            progress(0, len(todo), "estimating the sonar's effective beam width")
-        data.beam_width_deg = estimate_session_beam_width(data, clouds, detections)
-    data.adopt_beam_width(detections)
+    beam_ids = sonar_ids if estimate_beam_width and data.beam_width_deg is None and len(sonar_ids) >= 3 else []
+    if reuse:  # with the beam width still to estimate, no sonar entry can match
+        keep = set(stale(data, detections, [t for t in todo if not (beam_ids and t[1] == "sonar")]))
+        todo = [t for t in todo if t in keep or (beam_ids and t[1] == "sonar")]
+    if progress and beam_ids:
+        progress(0, len(todo), "estimating the sonar's effective beam width")
     auto: dict = {}
-    for i, (cid, sensor) in enumerate(todo):
-        if progress:
-            progress(i, len(todo), f"{cid} {sensor}")
-        if sensor == "sonar":
-            entry = detect_sonar_entry(data, cid, points_sonar_m=clouds.pop(cid))
-        else:
-            entry = detect_image_entry(data, cid, sensor)
-        entry["detected_at"] = now_iso()
-        auto.setdefault(cid, {})[sensor] = entry
+    beam_dets = {cid: detections.get(cid, {}) for cid in beam_ids}
+    for cid, sensor, entry in run_detections(data, todo, progress, workers, beam_ids, beam_dets):
+        auto.setdefault(cid, {})[sensor] = _with_fingerprint(data, cid, sensor, entry)
     merged = merge_auto(detections, auto)
     for cam in data.session.cameras:
         for cid, entry in _resolve_ambiguous_images(data, merged, cam, only=set(auto)).items():
@@ -193,6 +256,22 @@ def detect_session(session_or_data, detections: dict, progress: Progress | None 
     if progress:
         progress(len(todo), len(todo), "done")
     return merge_auto(detections, auto)
+
+
+def session_beam_width(data: SessionData, capture_ids: list[str], detections: dict) -> float | None:
+    """Load the clouds of ``capture_ids`` and estimate the session's effective beam width
+    (:func:`estimate_session_beam_width`); None when it cannot be estimated."""
+    from calib_core.io.clouds import load_cloud
+
+    clouds = {cid: load_cloud(data.session.capture(cid).cloud_path).points_m for cid in capture_ids}
+    return estimate_session_beam_width(data, clouds, detections)
+
+
+def detect_one(data: SessionData, cid: str, sensor: str) -> dict:
+    """One automatic detection (no fingerprint): what a worker process runs."""
+    if sensor == "sonar":
+        return detect_sonar_entry(data, cid)
+    return detect_image_entry(data, cid, sensor)
 
 
 def _resolve_ambiguous_images(data: SessionData, detections: dict, cam: str, only: set) -> dict:
@@ -235,8 +314,8 @@ def _resolve_ambiguous_images(data: SessionData, detections: dict, cam: str, onl
         entry = detect_image_entry(data, cid, cam, hint_uv_px=(u, v), hint_radius_px=radius_px)
         if entry.get("center") is not None and np.hypot(entry["center"][0] - u, entry["center"][1] - v) < 0.5 * radius_px:
             entry["resolved_by"] = why
-            entry["detected_at"] = now_iso()
-            out[cid] = entry
+            hint = {"hint_uv_px": [round(float(u), 3), round(float(v), 3)], "hint_radius_px": round(float(radius_px), 3)}
+            out[cid] = _with_fingerprint(data, cid, cam, entry, hint)
     return out
 
 
@@ -290,6 +369,8 @@ class Correspondences:
         cov_X_m2: (N,3,3) their covariances (m^2).
         statuses: (image status, sonar status) per row.
         skipped: {capture_id: reason} for captures not used.
+        range_m, range_sigma_m: (N,) the image detection's camera-to-centre range (m, from the known
+            diameter) and its 1-sigma; NaN where the entry has none (e.g. a click).
     """
 
     capture_ids: list[str]
@@ -299,6 +380,8 @@ class Correspondences:
     cov_X_m2: np.ndarray
     statuses: list[tuple[str, str]]
     skipped: dict[str, str]
+    range_m: np.ndarray | None = None  # (N,) camera range from the sphere's apparent size, NaN if none
+    range_sigma_m: np.ndarray | None = None  # (N,) its 1-sigma, NaN if none
 
     def __len__(self) -> int:
         return len(self.capture_ids)
@@ -320,7 +403,7 @@ def correspondences(session: Session, detections: dict, cam: str) -> Corresponde
     """
     if cam not in session.cameras:
         raise SessionError(session.manifest_path, f"no camera '{cam}'")
-    ids, uv, cuv, X, cX, st, skipped = [], [], [], [], [], [], {}
+    ids, uv, cuv, X, cX, st, skipped, rng = [], [], [], [], [], [], {}, []
     for cap in session.captures:
         if cam not in cap.image_paths:
             continue
@@ -344,5 +427,11 @@ def correspondences(session: Session, detections: dict, cam: str) -> Corresponde
         X.append(son["center"])
         cX.append(_cov(son, "cov_m2", 3, DEFAULT_SIGMA_SONAR_M))
         st.append((img["status"], son["status"]))
+        rng.append([_number(img.get("range_m")), _number(img.get("range_sigma_m"))])
     return Correspondences(ids, np.asarray(uv, float).reshape(-1, 2), np.asarray(cuv, float).reshape(-1, 2, 2),
-                           np.asarray(X, float).reshape(-1, 3), np.asarray(cX, float).reshape(-1, 3, 3), st, skipped)
+                           np.asarray(X, float).reshape(-1, 3), np.asarray(cX, float).reshape(-1, 3, 3), st, skipped,
+                           np.asarray(rng, float).reshape(-1, 2)[:, 0], np.asarray(rng, float).reshape(-1, 2)[:, 1])
+
+
+def _number(v) -> float:
+    return float(v) if isinstance(v, (int, float)) and not isinstance(v, bool) else float("nan")

@@ -72,6 +72,10 @@ def _summary(session, calibration, models, cal_note) -> str:
         tool = calibration.get("tool") or {}
         html += (f"<p>Calibration: {_e(created)}; tool {_e(tool.get('name', '-'))} {_e(tool.get('version', ''))}; "
                  f"{_e(_scale_text(calibration))}</p>")
+        from calib_core.solve.summary import consistency_lines
+
+        html += "".join(f"<p>{_e(line)}</p>" for line in consistency_lines(calibration)
+                        if line not in (calibration.get("warnings") or []))
         warnings = calibration.get("warnings") or []
         if warnings:
             html += "<ul>" + "".join(f'<li class="warn">{_e(w)}</li>' for w in warnings) + "</ul>"
@@ -80,12 +84,10 @@ def _summary(session, calibration, models, cal_note) -> str:
 
 
 def _scale_text(calibration) -> str:
+    from calib_core.solve.summary import scale_line
+
     s = calibration.get("range_scale")
-    if isinstance(s, dict) and s.get("estimated") and isinstance(s.get("value"), (int, float)):
-        return (f"range scale {s['value']:.5f} ± {_fmt(s.get('sigma'), '.5f')} (1-sigma): cloud points are divided "
-                f"by it before T_cam_sonar is applied")
-    return f"range scale {range_scale(calibration):g} ({(s or {}).get('note') or 'not estimated'})" if isinstance(s, dict) \
-        else f"range scale {range_scale(calibration):g}"
+    return scale_line(calibration) if isinstance(s, dict) else f"range scale {range_scale(calibration):g}"
 
 
 def _pose(calibration) -> str:

@@ -11,8 +11,12 @@ def add_parser(sub) -> None:
     p = sub.add_parser("calibrate", help="calibrate every camera to the sonar and write results/calibration.json")
     p.add_argument("session", help="session folder (holds session.yaml)")
     p.add_argument("--out", default=None, help="output file (default SESSION/results/calibration.json)")
-    p.add_argument("--scale", action="store_true",
-                   help="also estimate the sonar range scale (sound-speed error; needs two cameras and a stereo transform)")
+    g = p.add_mutually_exclusive_group()
+    g.add_argument("--scale", dest="scale", action="store_const", const=True, default=None,
+                   help="estimate the sonar range scale whenever observable, even when the test finds no scale error "
+                        "(default: estimated when observable and the data show a scale error)")
+    g.add_argument("--no-scale", dest="scale", action="store_const", const=False,
+                   help="hold the sonar range scale at 1")
     p.add_argument("--robust", choices=["huber", "cauchy"], default=None, help="robust loss on each capture")
     p.add_argument("--no-detect", action="store_true",
                    help="do not run the detectors: use the entries in detections.yaml as they are")
@@ -48,12 +52,15 @@ def run(args) -> int:
 
 def print_report(cal: dict, quiet: bool = False) -> None:
     from calib_core.detect.reasons import count_reasons
-    from calib_core.solve.summary import pose_rows, residual_rows, scale_line, table_i_rows
+    from calib_core.solve.summary import consistency_lines, pose_rows, residual_rows, scale_line, table_i_rows
 
     console.print(f"[bold]Calibration of {cal['session']}[/bold]")
     cols, rows = pose_rows(cal)
     console.print(table("T_cam_sonar per camera (sonar origin in the camera frame; sigmas about camera axes)", cols, rows))
-    console.print(scale_line(cal))
+    console.print(scale_line(cal), markup=False)
+    for line in consistency_lines(cal):
+        if line not in cal.get("warnings", []):
+            console.print(line, markup=False)
     if quiet:
         return
     for cam in cal["cameras"]:

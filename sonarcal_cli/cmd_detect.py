@@ -16,6 +16,8 @@ def add_parser(sub) -> None:
     p.add_argument("session", help="session folder (holds session.yaml)")
     p.add_argument("--capture", action="append", metavar="ID", help="only this capture (repeatable)")
     p.add_argument("--missing-only", action="store_true", help="keep existing auto entries; detect only missing ones")
+    p.add_argument("--force", action="store_true",
+                   help="detect auto entries again even when their fingerprint (input files, detector, parameters) matches")
     p.add_argument("--nominal-beam", action="store_true",
                    help="fit clouds with session.yaml's beam width instead of estimating the effective one")
     p.set_defaults(run=run)
@@ -38,7 +40,8 @@ def run(args) -> int:
     data = SessionData(session)
     with progress_bar("detecting") as cb:
         dets = detect_session(data, existing, progress=cb, captures=args.capture,
-                              redetect_auto=not args.missing_only, estimate_beam_width=not args.nominal_beam)
+                              redetect_auto=not args.missing_only, estimate_beam_width=not args.nominal_beam,
+                              reuse=not args.force)
     save_detections(session, dets)
     rows, missing = [], 0
     for cap in session.captures:
@@ -62,4 +65,8 @@ def run(args) -> int:
     if data.beam_width_deg:
         console.print(f"sonar effective beam width {data.beam_width_deg:.3f} deg (session.yaml: {session.beam_width_deg:g} deg)")
     console.print(f"wrote {session.root / 'detections.yaml'}; {missing} detection(s) not found")
+    from calib_core.diagnose import diagnose_session
+
+    for f in diagnose_session(data, dets):  # the workbench's flags, in the same words
+        err_console.print(f"flag: {f.text}", markup=False)
     return 0

@@ -16,7 +16,7 @@ import traceback
 from calib_core import __version__
 from calib_core.errors import SessionError
 
-COMMANDS = ["info", "synth", "detect", "calibrate", "checkerboard", "serve", "export", "report", "import"]
+COMMANDS = ["info", "synth", "detect", "calibrate", "intrinsics", "stereo", "serve", "export", "report", "import", "plan"]
 
 
 def build_parser() -> argparse.ArgumentParser:

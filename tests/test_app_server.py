@@ -153,7 +153,12 @@ def test_fused_view_colours_the_cloud_from_the_image(wb):
     wb.fused.capture.value = "p02"
     wb.fused._run(SimpleNamespace(client=None, client_id=None))
     assert wb.wait_idle(30)
-    assert wb.fused.node is not None and wb.scene3d.hidden == {"p02"}
+    assert wb.fused.node is not None
+    assert wb.scene3d.hidden == {c.id for c in wb.state.session.captures}  # the fused cloud alone on screen
+    assert not any(n.visible for n in wb.scene3d.cloud_nodes.values())
+    wb.fused.show.value = False
+    assert wb.wait_idle(30)
+    assert wb.scene3d.hidden == set() and wb.scene3d.cloud_nodes[wb.state.selected].visible
 
 
 def test_drag_handle_refits_the_sonar_centre_on_release(wb, monkeypatch):
@@ -174,3 +179,106 @@ def test_drag_handle_refits_the_sonar_centre_on_release(wb, monkeypatch):
     wb.review._on_drag(ev("end"))
     e = load_detections(load_session(wb.state.session.root))["p01"]["sonar"]
     assert e["status"] == "corrected" and e["center"] == [0.5, 0.25, 3.0] and e["history"][-1]["action"] == "drag"
+
+
+def test_click_messages_say_a_failed_refit_plainly():
+    from app.images import click_message
+
+    ok = click_message("p01", "cam2", {"center": [10.0, 20.0], "refit": True}, True)
+    failed = click_message("p01", "cam2", {"center": [10.0, 20.0], "refit": False, "refit_reason": "no sphere"}, True)
+    plain = click_message("p01", "cam2", {"center": [10.0, 20.0], "refit": False}, False)
+    assert ok[2] == "green" and "cam2 corrected" in ok[0]
+    assert failed[2] != "green" and "refit failed" in failed[0] and "no sphere" in failed[1]
+    assert plain[2] == "green" and "clicked centre" in plain[1]
+
+
+def test_a_click_corrects_the_camera_looked_through_and_refit_uses_the_sphere_size(wb, monkeypatch):
+    import app.images as images
+
+    seen = {}
+
+    def fake_refit(data, cid, cam, uv, radius):
+        seen.update(cid=cid, cam=cam, radius=radius)
+        return {"status": "corrected", "center": [float(v) for v in uv], "refit": True}
+
+    monkeypatch.setattr(images, "refit_image", fake_refit)
+    wb.images.viewing[7] = ("cam1", np.zeros(3))
+    assert wb.images.clicked_camera(7, "cam9") == "cam1"  # a board behind another: the viewed camera wins
+    assert wb.images.clicked_camera(8, "cam9") == "cam9"
+    calibrate_fake(wb, T_from_rotvec(np.zeros(3), np.array([0.0, 0.0, 0.0])))
+    e = wb.images.correct_click("p02", "cam1", (20.0, 21.0), "b")
+    assert e["refit"] is True and e["refit_asked"] is True and seen["cam"] == "cam1"
+    son = wb.state.entry("p02", "sonar")["center"]
+    fx = wb.state.camera("cam1").fx
+    assert abs(seen["radius"] - fx * wb.state.session.sphere_radius_m / son[2]) < 1e-9  # not the click radius
+
+
+def test_session_tab_follows_a_solve_and_events_are_named(wb):
+    from app.session_panel import calibration_line
+
+    assert "none yet" in wb.session_panel.info.content
+    calibrate_fake(wb, np.eye(4))
+    assert "results/calibration.json" in wb.session_panel.info.content
+    assert calibration_line({"cameras": {"cam1": {"rms_reprojection_px": 0.512}}}).endswith("(cam1 RMS 0.51 px)")
+    got = []
+    wb.state.bus.subscribe("corrected", lambda **kw: got.append(kw))
+    wb.images.refit.value = False
+    wb.images.correct_click("p01", "cam1", (5.0, 6.0), "b")
+    assert got == [{"cid": "p01", "sensor": "cam1"}]
+    with pytest.raises(KeyError):
+        wb.state.bus.publish("no-such-event")
+
+
+def test_review_table_colours_and_states_thresholds(wb):
+    from app.review import DOTS, cell, dot
+    from calib_core.diagnose.wording import THRESHOLDS_NOTE
+
+    calibrate_fake(wb, np.eye(4))
+    text = wb.review.table.content
+    assert THRESHOLDS_NOTE in text and f"{DOTS['good']} good" in text
+    c = cell({"status": "auto", "score": 0.95, "residual_px": 7.25, "found": True, "flag": None})
+    assert c.startswith(DOTS["bad"]) and "7.25\u00a0px" in c  # bad
+    assert " " not in c.split("</span>", 1)[1]  # and never wrapped mid-value
+    assert cell({"status": "rejected", "score": None, "residual_px": None, "found": False}).startswith(dot("none"))
+
+
+def test_a_flag_is_a_link_to_its_capture_and_fix(wb):
+    from types import SimpleNamespace
+
+    from calib_core.diagnose import Flag
+
+    st = wb.state
+    wb.diagnoser.wait_idle(30)
+    st.flags = [Flag("p03", "sonar", "sonar", "cam1", 40.0, None, [0.1, 0.2, 2.9], 0.3),
+                Flag("p02", "cam1", "image", "cam1", 55.0, [30.0, 20.0], None, 12.0)]
+    st.bus.publish("flags")
+    assert wb.wait_idle(30)
+    b0, b1 = wb.flags.buttons[:2]
+    assert b0.visible and b0.label == "⚠ p03 sonar: sonar detection wrong" and "drag the handle" in b0.hint
+    assert b1.label == "⚠ p02 cam1: image detection wrong" and not wb.flags.buttons[2].visible
+    first_two = wb.review.table.content.split("\n")[4:6]  # flagged captures come first, marked
+    assert {ln.split("|")[2].strip() for ln in first_two} == {"p02", "p03"} and all("⚠" in ln for ln in first_two)
+    wb.flags.go(SimpleNamespace(client=None, client_id=None), 0)
+    assert wb.wait_idle(30)
+    assert st.selected == "p03" and wb.review.sensor.value == "sonar" and wb.review.handle_on.value
+    assert "sonar detection is wrong" in wb.review.details.content
+    wb.flags.go(SimpleNamespace(client=None, client_id=None), 1)
+    assert wb.wait_idle(30)
+    assert st.selected == "p02" and wb.review.sensor.value == "cam1"
+    # uncalibrated: the board marks where the consensus pose puts the sphere
+    assert np.allclose(wb.images.reprojected_centre("p02", "cam1"), [30.0, 20.0])
+
+
+def test_default_view_faces_the_image_boards(wb):
+    import contextlib
+    from types import SimpleNamespace
+
+    from app.scene3d import camera_pose
+
+    calibrate_fake(wb, T_from_rotvec(np.array([0.4, -0.3, 0.2]), np.array([0.1, 0.0, 0.2])))
+    client = SimpleNamespace(camera=SimpleNamespace(), atomic=contextlib.nullcontext)
+    wb.scene3d.home_view(client)
+    view = np.asarray(client.camera.look_at, float) - np.asarray(client.camera.position, float)
+    axis = camera_pose(wb.state, "cam1")[:3, 2]  # the board's normal (the camera's optical axis)
+    angle = np.degrees(np.arccos(view @ axis / np.linalg.norm(view)))
+    assert angle < 50, angle  # seen from behind the camera, not edge-on (90 deg)

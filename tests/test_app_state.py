@@ -75,20 +75,66 @@ def test_correct_then_undo_restores_and_records(state):
     e = on_disk(state)["p01"]["cam1"]
     assert e["status"] == "auto" and e["center"] == [30.0, 20.0]
     assert [h["action"] for h in e["history"]] == ["correct", "undo correct"]
+    assert [h["kind"] for h in e["history"]] == ["do", "undo"]
     with pytest.raises(SessionError, match="nothing to undo"):
         state.undo("browser-7")
 
 
-def test_undo_is_per_client_and_refuses_a_change_made_since(state):
+def test_undo_is_shared_by_clients_and_refuses_a_hand_edit(state):
     state.set_status("p01", "accepted", "browser-1", ["cam1"])
     state.correct("p01", "cam1", {"center": [1.0, 2.0]}, "browser-2")
-    with pytest.raises(SessionError, match="changed since"):
-        state.undo("browser-1")
-    with pytest.raises(SessionError, match="nothing to undo"):
-        state.undo("browser-3")
-    state.undo("browser-2")
+    state.undo("browser-3")  # any client undoes the session's latest change
+    assert on_disk(state)["p01"]["cam1"]["status"] == "accepted"
     state.undo("browser-1")
     assert on_disk(state)["p01"]["cam1"]["status"] == "auto"
+    with pytest.raises(SessionError, match="nothing to undo"):
+        state.undo("browser-1")
+    state.correct("p02", "cam1", {"center": [3.0, 4.0]}, "b")
+    path = state.session.root / "detections.yaml"
+    doc = yaml.safe_load(path.read_text())
+    doc["captures"]["p02"]["cam1"]["center"] = [9.0, 9.0]  # a hand edit after the change
+    path.write_text(yaml.safe_dump(doc))
+    with pytest.raises(SessionError, match="changed since"):
+        state.undo("b")
+
+
+def test_undo_redo_survive_a_restart_and_a_new_change_clears_redo(state):
+    root = state.session.root
+    state.correct("p01", "cam1", {"center": [12.5, 7.25]}, "browser-1")
+    state.set_status("p02", "rejected", "browser-1")
+    fresh = WorkbenchState()  # another process, later (a reload or a restart)
+    fresh.open(root)
+    ch = fresh.undo("browser-9")
+    assert ch.action == "reject" and {(c, s) for c, s, _p, _n in ch.items} == {("p02", "sonar"), ("p02", "cam1")}
+    assert on_disk(fresh)["p02"]["cam1"]["status"] == "auto"
+    fresh.undo("browser-9")
+    assert on_disk(fresh)["p01"]["cam1"]["center"] == [30.0, 20.0]
+    again = WorkbenchState()
+    again.open(root)
+    assert again.redo("browser-2").action == "correct"
+    e = on_disk(again)["p01"]["cam1"]
+    assert e["status"] == "corrected" and e["center"] == [12.5, 7.25]
+    assert [h["kind"] for h in e["history"]] == ["do", "undo", "redo"]
+    again.undo("x")
+    again.redo("x")
+    assert on_disk(again)["p01"]["cam1"]["center"] == [12.5, 7.25]
+    again.set_status("p03", "rejected", "x")  # a new change: the reject of p02 can no longer be redone
+    with pytest.raises(SessionError, match="nothing to redo"):
+        again.redo("x")
+    assert on_disk(again)["p02"]["cam1"]["status"] == "auto"
+
+
+def test_undo_of_a_first_entry_asks_for_detection_again(tmp_path):
+    root = make_session(tmp_path / "s")
+    (root / "detections.yaml").unlink()
+    st = WorkbenchState()
+    st.open(root)
+    st.correct("p01", "cam1", {"center": [5.0, 6.0]}, "b")
+    assert "p01" in st.missing()  # sonar not detected yet
+    st.undo("b")
+    assert on_disk(st)["p01"]["cam1"].get("center") is None and "p01" in st.missing()
+    st.redo("b")
+    assert on_disk(st)["p01"]["cam1"]["center"] == [5.0, 6.0]
 
 
 def test_accept_needs_a_centre_and_unknown_sensor_is_refused(state):
@@ -118,16 +164,16 @@ def test_concurrent_edits_of_one_capture_end_consistent(state, two_servers):
         s2.open(state.session.root)
         states.append(s2)
     n_threads, n_ops = 6, 15
-    errors = []
+    errors, made = [], []
 
     def worker(k):
         st = states[k % len(states)]
         try:
             for i in range(n_ops):
                 if i % 3 == 0:
-                    st.set_status("p01", "accepted" if (i // 3) % 2 == 0 else "rejected", f"c{k}", ["cam1"])
+                    made.append(st.set_status("p01", "accepted" if (i // 3) % 2 == 0 else "rejected", f"c{k}", ["cam1"]))
                 else:
-                    st.correct("p01", "cam1", {"center": [float(k), float(i)]}, f"c{k}")
+                    made.append(st.correct("p01", "cam1", {"center": [float(k), float(i)]}, f"c{k}"))
         except SessionError as e:  # "already accepted" races are legitimate refusals
             if "already" not in str(e):
                 errors.append(e)
@@ -140,8 +186,8 @@ def test_concurrent_edits_of_one_capture_end_consistent(state, two_servers):
     assert not errors
     disk = on_disk(state)
     hist = disk["p01"]["cam1"]["history"]
-    made = sum(1 for st in states for ch in st.undo_stack for it in ch.items if it[:2] == ("p01", "cam1"))
-    assert len(hist) == made  # every change recorded once, none lost
+    assert len(hist) == len(made)  # every change recorded once, none lost
+    assert sorted(h["change"] for h in hist) == sorted({ch.id for ch in made})  # numbered uniquely
     last = hist[-1]
     assert disk["p01"]["cam1"]["status"] == last["status"]
     if last["status"] == "corrected":

@@ -141,6 +141,7 @@ COMMANDS = {
     "calibrate": (lambda r: ["calibrate", str(r)], {"manifest", "intrinsics", "image", "cloud", "detections"}),
     "export": (lambda r: ["export", str(r), "--format", "json"], {"manifest", "calibration"}),
     "report": (lambda r: ["report", str(r)], {"manifest", "calibration", "detections"}),
+    "plan": (lambda r: ["plan", str(r)], {"manifest", "intrinsics", "detections", "calibration"}),
 }
 
 
@@ -199,7 +200,7 @@ def test_info_exit_0_writes_nothing(make_session, tmp_path, capsys):
     assert "no problems found" in capsys.readouterr().out
 
 
-@pytest.mark.parametrize("command", ["info", "detect", "calibrate", "export", "report", "serve"])
+@pytest.mark.parametrize("command", ["info", "detect", "calibrate", "export", "report", "serve", "plan"])
 def test_missing_session_folder(tmp_path, capsys, command):
     if not cli_command_exists(command):
         pytest.skip(f"sonarcal_cli/cmd_{command}.py does not exist yet")

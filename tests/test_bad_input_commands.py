@@ -24,13 +24,13 @@ def setup(make_session, tmp_path):
 
 
 CASES = {
-    "intrinsics corrupt image": ("checkerboard", lambda r, t: ["intrinsics", f"{t}/cb", "--square", "0.025", "--out", f"{t}/o.yaml"], "a.png"),
-    "intrinsics empty folder": ("checkerboard", lambda r, t: ["intrinsics", f"{t}/empty", "--square", "0.025", "--out", f"{t}/o.yaml"], "empty"),
-    "intrinsics missing folder": ("checkerboard", lambda r, t: ["intrinsics", f"{t}/nope", "--square", "0.025", "--out", f"{t}/o.yaml"], "nope"),
-    "intrinsics negative square": ("checkerboard", lambda r, t: ["intrinsics", f"{r}/images/cam1", "--square", "-1", "--out", f"{t}/o.yaml"], "--square"),
-    "intrinsics nan square": ("checkerboard", lambda r, t: ["intrinsics", f"{r}/images/cam1", "--square", "nan", "--out", f"{t}/o.yaml"], "--square"),
-    "intrinsics bad pattern": ("checkerboard", lambda r, t: ["intrinsics", f"{r}/images/cam1", "--pattern", "axb", "--square", "0.02", "--out", f"{t}/o.yaml"], "pattern"),
-    "stereo empty folder": ("checkerboard", lambda r, t: ["stereo", f"{t}/cb", f"{t}/empty", "--square", "0.025", "--out", f"{t}/s.yaml"], "empty"),
+    "intrinsics corrupt image": ("intrinsics", lambda r, t: ["intrinsics", f"{t}/cb", "--square", "0.025", "--out", f"{t}/o.yaml"], "a.png"),
+    "intrinsics empty folder": ("intrinsics", lambda r, t: ["intrinsics", f"{t}/empty", "--square", "0.025", "--out", f"{t}/o.yaml"], "empty"),
+    "intrinsics missing folder": ("intrinsics", lambda r, t: ["intrinsics", f"{t}/nope", "--square", "0.025", "--out", f"{t}/o.yaml"], "nope"),
+    "intrinsics negative square": ("intrinsics", lambda r, t: ["intrinsics", f"{r}/images/cam1", "--square", "-1", "--out", f"{t}/o.yaml"], "--square"),
+    "intrinsics nan square": ("intrinsics", lambda r, t: ["intrinsics", f"{r}/images/cam1", "--square", "nan", "--out", f"{t}/o.yaml"], "--square"),
+    "intrinsics bad pattern": ("intrinsics", lambda r, t: ["intrinsics", f"{r}/images/cam1", "--pattern", "axb", "--square", "0.02", "--out", f"{t}/o.yaml"], "pattern"),
+    "stereo empty folder": ("stereo", lambda r, t: ["stereo", f"{t}/cb", f"{t}/empty", "--square", "0.025", "--out", f"{t}/s.yaml"], "empty"),
     "synth unknown preset": ("synth", lambda r, t: ["synth", f"{t}/syn", "--preset", "nonexistent", "--seed", "1"], "nonexistent"),
     "synth over a session": ("synth", lambda r, t: ["synth", str(r), "--preset", "quick", "--seed", "1"], "not empty"),
     "serve broken session": ("serve", lambda r, t: ["serve", str(r), "--port", "0"], "session.yaml"),

@@ -131,7 +131,7 @@ def test_stereo_transform_recovered(boards):
 
 
 def test_cli_intrinsics_and_stereo(boards, tmp_path):
-    from sonarcal_cli import cmd_checkerboard
+    from sonarcal_cli import cmd_intrinsics, cmd_stereo
 
     (tmp_path / "c1").mkdir()
     (tmp_path / "c2").mkdir()
@@ -140,7 +140,8 @@ def test_cli_intrinsics_and_stereo(boards, tmp_path):
         if b is not None:
             save_image(tmp_path / "c2" / f"{n}.png", b)
     sub = argparse.ArgumentParser().add_subparsers()
-    cmd_checkerboard.add_parser(sub)
+    cmd_intrinsics.add_parser(sub)
+    cmd_stereo.add_parser(sub)
     parser = sub._name_parser_map
     a = parser["intrinsics"].parse_args([str(tmp_path / "c1"), "--pattern", "9x6", "--square", str(SQUARE),
                                          "--out", str(tmp_path / "cam1.yaml")])

@@ -327,3 +327,19 @@ def test_effective_beam_width_is_estimated_from_a_session():
         assert np.linalg.norm(err.mean(axis=0)) < 1.5e-3
     few = estimate_beam_width_deg(clouds[:2], R_TRUE)
     assert few.beam_width_deg == 1.0 and few.reason
+
+
+def test_coarse_to_fine_width_search_matches_the_full_grid():
+    from calib_core.detect.sonar_beam import beam_crop, estimate_from_crops
+
+    rng = np.random.default_rng(32)
+    centers = [random_center(rng, 1.2, 3.0) for _ in range(4)]
+    for true_deg in (0.9, 0.0):
+        clouds = [simulate([(c, R_TRUE)], seed=50 + i, az_range=(-30, 30), n_spurious=200,
+                           h=np.radians(true_deg) / 2) for i, c in enumerate(centers)]
+        crops = [beam_crop(P, R_TRUE, 1.0) for P in clouds]
+        grid = estimate_from_crops(crops, R_TRUE, 1.0, search="grid")
+        fast = estimate_from_crops(crops, R_TRUE, 1.0)
+        assert len(fast.factors) < len(grid.factors)  # fewer widths scanned
+        assert abs(fast.beam_width_deg - grid.beam_width_deg) < 0.02, (true_deg, grid, fast)
+        assert abs(fast.beam_width_deg - true_deg) < 0.06

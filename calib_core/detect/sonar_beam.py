@@ -64,45 +64,60 @@ def estimate_beam_width_deg(clouds_sonar_m: list, sphere_radius_m: float,
         progress: optional ``progress(done, total, label)``.
     """
     r = float(sphere_radius_m)
-    factors = np.asarray(DEFAULT_FACTORS if factors is None else factors, float)
-    h0 = np.radians(nominal_deg) / 2.0
-    crops, sigmas = [], []
+    crops = []
     n = len(clouds_sonar_m)
+    n_f = len(DEFAULT_FACTORS if factors is None else factors)
     for k, i in enumerate(_spread_order(n)):
         if len(crops) >= MAX_CAPTURES:
             break
-        P = np.asarray(clouds_sonar_m[i], float).reshape(-1, 3)
-        c = None if centers_sonar_m is None else centers_sonar_m[i]
-        if c is None:
-            det = _detect_any_width(P, r, nominal_deg)
-            if det is None:
-                continue
-            c, sig = det.center_sonar_m, det.extras.get("sigma_range_m", 0.005)
-        else:
-            sig = 0.005
-        X = P[crop_ball(P, np.asarray(c, float), 1.6 * r + np.linalg.norm(c) * np.tan(h0) + 0.05)]
-        if len(X) >= 12:
-            crops.append((X, np.asarray(c, float)))
-            sigmas.append(float(sig))
+        crop = beam_crop(clouds_sonar_m[i], r, nominal_deg, None if centers_sonar_m is None else centers_sonar_m[i])
+        if crop is not None:
+            crops.append(crop)
         if progress is not None:
-            progress(k + 1, n + len(factors), "beam width: captures")
+            progress(k + 1, n + n_f, "beam width: captures")
+    return estimate_from_crops(crops, r, nominal_deg, factors, progress, n)
+
+
+def beam_crop(cloud_sonar_m, sphere_radius_m: float, nominal_deg: float = 1.0, center_sonar_m=None):
+    """One capture's share of the estimate: (points around the sphere, its centre, range sigma),
+    or None when no sphere is found there. ``center_sonar_m``: a known centre (else detected)."""
+    r = float(sphere_radius_m)
+    h0 = np.radians(nominal_deg) / 2.0
+    P = np.asarray(cloud_sonar_m, float).reshape(-1, 3)
+    c, sig = center_sonar_m, 0.005
+    if c is None:
+        det = _detect_any_width(P, r, nominal_deg)
+        if det is None:
+            return None
+        c, sig = det.center_sonar_m, det.extras.get("sigma_range_m", 0.005)
+    c = np.asarray(c, float)
+    X = P[crop_ball(P, c, 1.6 * r + np.linalg.norm(c) * np.tan(h0) + 0.05)]
+    return (X, c, float(sig)) if len(X) >= 12 else None
+
+
+def estimate_from_crops(crops: list, sphere_radius_m: float, nominal_deg: float = 1.0, factors=None,
+                        progress=None, n: int = 0, search: str = "coarse-to-fine") -> BeamWidthEstimate:
+    """The width scan over the captures' crops (:func:`beam_crop`; None entries are skipped).
+
+    ``search``: "coarse-to-fine" (default, see :func:`_search_order`) or "grid" (every factor,
+    every fit cold from the detected centre: the reference it is benchmarked against)."""
+    r = float(sphere_radius_m)
+    factors = np.asarray(DEFAULT_FACTORS if factors is None else factors, float)
+    h0 = np.radians(nominal_deg) / 2.0
+    crops = [c for c in crops if c is not None][:MAX_CAPTURES]
+    sigmas = [c[2] for c in crops]
+    crops = [(X, c) for X, c, _ in crops]
     if len(crops) < MIN_CAPTURES:
         return BeamWidthEstimate(float(nominal_deg), float(nominal_deg), len(crops),
                                  f"needs at least {MIN_CAPTURES} detected spheres")
     scale = max(float(np.median(sigmas)), 1e-3)
-    costs = []
-    for k, f in enumerate(factors):
-        h = h0 * f
-        total = 0.0
-        for j, (X, c) in enumerate(crops):
-            fit = fit_sphere(X, c, r, model="cone", half_angle_rad=h, sigma0_m=scale)
-            cc = fit.center_m if fit.ok else c
-            R = np.linalg.norm(X, axis=1)
-            a, b = cone_residuals(cc, r, R, X / R[:, None], h)
-            total += float(np.sum(np.minimum(np.hypot(a, b) / scale, 3.0) ** 2))
-        costs.append(total)
+    scan = _WidthScan(crops, r, h0, scale, warm=search != "grid")
+    order = _search_order(scan, factors) if search != "grid" else _grid_order(scan, factors)
+    for k, f in enumerate(order):
         if progress is not None:
             progress(n + k + 1, n + len(factors), "beam width: scan")
+    factors = np.asarray(sorted(scan.costs), float)
+    costs = [scan.costs[f] for f in factors]
     costs = np.asarray(costs)
     b = int(np.argmin(costs))
     best = float(factors[b])
@@ -114,6 +129,63 @@ def estimate_beam_width_deg(clouds_sonar_m: list, sphere_radius_m: float,
     best = max(best * float(nominal_deg), MIN_WIDTH_DEG)
     return BeamWidthEstimate(best, float(nominal_deg), len(crops), reason,
                              [float(f) for f in factors], [float(c) for c in costs])
+
+
+class _WidthScan:
+    """Total truncated-quadratic cost of the captures' cone fits at a width (memoised); each fit
+    starts warm from the same capture's fit at the nearest width already scanned."""
+
+    def __init__(self, crops, r, h0, scale, warm: bool = True):
+        self.crops, self.r, self.h0, self.scale, self.warm = crops, r, h0, scale, warm
+        self.costs: dict[float, float] = {}
+        self.centers: dict[float, list] = {}
+
+    def cost(self, f: float) -> float:
+        f = float(f)
+        if f in self.costs:
+            return self.costs[f]
+        near = min(self.centers, key=lambda g: abs(g - f)) if self.centers and self.warm else None
+        h, total, centers = self.h0 * f, 0.0, []
+        for j, (X, c) in enumerate(self.crops):
+            start = c if near is None else self.centers[near][j]
+            fit = fit_sphere(X, start, self.r, model="cone", half_angle_rad=h, sigma0_m=self.scale,
+                             warm=near is not None)
+            cc = fit.center_m if fit.ok else c
+            centers.append(cc)
+            R = np.linalg.norm(X, axis=1)
+            a, b = cone_residuals(cc, self.r, R, X / R[:, None], h)
+            total += float(np.sum(np.minimum(np.hypot(a, b) / self.scale, 3.0) ** 2))
+        self.costs[f], self.centers[f] = total, centers
+        return total
+
+
+def _grid_order(scan: _WidthScan, factors):
+    """Every factor in turn (the reference search)."""
+    for f in factors:
+        scan.cost(f)
+        yield float(f)
+
+
+def _search_order(scan: _WidthScan, factors: np.ndarray):
+    """Coarse to fine over ``factors`` (sorted): every other factor first, then the neighbours of
+    the best one, until the best has both its grid neighbours scanned (the costs are smooth in
+    the width, so the full grid's minimum and its parabola are found with about half the fits).
+    Yields each factor as it is scanned."""
+    fs = [float(f) for f in np.sort(np.asarray(factors, float))]
+    for i in range(0, len(fs), 2):
+        scan.cost(fs[i])
+        yield fs[i]
+    if (len(fs) - 1) % 2:
+        scan.cost(fs[-1])
+        yield fs[-1]
+    while True:
+        b = fs.index(min(scan.costs, key=scan.costs.get))
+        todo = [fs[j] for j in (b - 1, b + 1) if 0 <= j < len(fs) and fs[j] not in scan.costs]
+        if not todo:
+            return
+        for f in todo:
+            scan.cost(f)
+            yield f
 
 
 def _detect_any_width(P: np.ndarray, r: float, nominal_deg: float):

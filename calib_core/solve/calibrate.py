@@ -21,8 +21,11 @@ import numpy as np
 from calib_core import __version__
 from calib_core.errors import SessionError
 from calib_core.results import CALIBRATION_FORMAT
+from calib_core.solve.consistency import consistency, consistency_phrase, is_warning
 from calib_core.solve.model import camera_data
 from calib_core.solve.refine import ROBUST_LOSSES, Link
+from calib_core.solve.scale import diameter_sigma
+from calib_core.solve.shared_scale import shared_scale
 from calib_core.solve.rig import default_stereo_cov, find_stereo, solve_rig, table_i
 from calib_core.solve.single import CameraSolution, solve_camera
 
@@ -31,14 +34,16 @@ from calib_core.solve.single import CameraSolution, solve_camera
 class CalibrateOptions:
     """Options of :func:`calibrate_session`.
 
-    estimate_scale: also estimate the sonar range scale (needs two cameras and a stereo transform).
+    estimate_scale: None (default): estimate the sonar range scale wherever it is observable and the
+        F test of :mod:`calib_core.solve.scale` finds a scale error; True: estimate it whenever
+        observable (the old ``--scale``); False: hold it at 1 (``--no-scale``).
     robust: None, "huber" or "cauchy" (robust loss on each capture's Mahalanobis distance).
     detect: detect missing / auto entries afresh (False: use auto entries as they are).
     leave_one_out: compute leave-one-out residuals. joint: solve tied cameras jointly.
     check_outliers: run RANSAC to find captures that do not fit. seed: RANSAC sampling seed.
     """
 
-    estimate_scale: bool = False
+    estimate_scale: bool | None = None
     robust: str | None = None
     detect: bool = True
     leave_one_out: bool = True
@@ -60,6 +65,8 @@ def _options(options) -> CalibrateOptions:
         o = CalibrateOptions(**options)
     else:
         raise TypeError("options must be a CalibrateOptions, a dict or None")
+    if o.estimate_scale not in (None, True, False):
+        raise SessionError(None, f"estimate_scale must be true, false or null (got {o.estimate_scale!r})")
     if o.robust not in (None, *ROBUST_LOSSES):
         raise SessionError(None, f"robust loss must be one of {', '.join(ROBUST_LOSSES)} (got {o.robust!r})")
     return o
@@ -107,15 +114,129 @@ def _stereo_cov(session, key: str) -> tuple[np.ndarray, bool]:
 
 
 def _camera_entry(sol: CameraSolution, skipped: dict, intrinsics_rel: str) -> dict:
+    cons = consistency(sol.chi2, sol.dof, f"{sol.name} (independent solve)")
     return {
         "T_cam_sonar": sol.T_cam_sonar, "rms_reprojection_px": sol.rms_px, "captures_used": sol.captures_used,
         "covariance": sol.cov, "solution": "independent", **sigmas(sol.cov),
-        "chi2": sol.chi2, "dof": sol.dof, "variance_factor": sol.variance_factor,
+        "chi2": sol.chi2, "dof": sol.dof, "variance_factor": sol.variance_factor, "consistency": cons,
         "independent": {"T_cam_sonar": sol.T_cam_sonar, "covariance": sol.cov, "rms_reprojection_px": sol.rms_px,
-                        "variance_factor": sol.variance_factor},
+                        "variance_factor": sol.variance_factor, "consistency": cons},
         "residuals": sol.rows, "outliers": sol.outliers, "skipped": skipped, "intrinsics": intrinsics_rel,
         **({"covariance_with_scale": sol.cov_scale} if sol.cov_scale is not None else {}),
     }
+
+
+def _solve_cameras(session, dets, opts, progress):
+    """Independent solve of every camera: ({cam: CameraSolution}, {cam: entry}, errors)."""
+    from calib_core import pipeline
+
+    sols, entries, errors = {}, {}, []
+    cam_names = list(session.cameras)
+    single_scale = opts.estimate_scale if len(cam_names) == 1 else False
+    for k, cam in enumerate(cam_names):
+        if progress:
+            progress(k, len(cam_names), f"solving {cam}")
+        corr = pipeline.correspondences(session, dets, cam)
+        model = session.camera_model(cam)
+        try:
+            cd = camera_data(cam, model, corr.capture_ids, corr.uv_px, corr.cov_uv_px2, corr.X_sonar_m, corr.cov_X_m2,
+                             corr.range_m, corr.range_sigma_m)
+            sol = solve_camera(cd, estimate_scale=single_scale, robust=opts.robust, loo=opts.leave_one_out,
+                               check_outliers=opts.check_outliers, seed=opts.seed,
+                               diameter_rel_sigma=diameter_sigma(session)[0] / session.sphere_diameter_m)
+        except SessionError as e:
+            why = "; ".join(f"{c}: {r}" for c, r in corr.skipped.items())
+            errors.append(e.problem + (f" (skipped: {why})" if why else ""))
+            continue
+        sols[cam] = sol
+        rel = str(session.cameras[cam].intrinsics_path.relative_to(session.root))
+        entries[cam] = _camera_entry(sol, corr.skipped, rel)
+    return sols, entries, errors
+
+
+def _scale_entry(value=1.0, sigma=None, estimated=False, source="none", note="", observable=False, test=None) -> dict:
+    """The calibration.json ``range_scale`` block (contract: value, sigma, estimated, source)."""
+    return {"value": value, "sigma": sigma, "estimated": estimated, "source": source, "note": note,
+            "observable": observable, "test": test}
+
+
+def _joint(session, sols, entries, opts, progress, warnings):
+    """Joint solve of the cameras tied to the first by a stereo transform: (joint dict, scale dict) or (None, None)."""
+    solved = [c for c in session.cameras if c in sols]
+    ref = solved[0]
+    links, stereo_info = {}, {}
+    for c in solved[1:]:
+        T = find_stereo(session.stereo, ref, c)
+        if T is not None:
+            cov, assumed = _stereo_cov(session, f"T_{c}_{ref}")
+            links[c] = Link(T, cov)
+            stereo_info[c] = {"T_cam_ref": T, "covariance": cov, "covariance_assumed": assumed}
+    if not links:
+        return None, None
+    if progress:
+        progress(len(solved), len(solved) + 1, "joint solve")
+    rs = solve_rig(sols, links, ref, estimate_scale=opts.estimate_scale, robust=opts.robust)
+    warnings += rs.warnings
+    if any(v["covariance_assumed"] for v in stereo_info.values()):
+        warnings.append("joint solve: no stereo_covariance in session.yaml; assumed 0.05 deg / 1 mm (1-sigma) "
+                        "per axis for the stereo transform")
+    cons = consistency(rs.chi2, rs.dof, "joint solve")
+    joint = {"reference": ref, "cameras": rs.cameras, "stereo": stereo_info,
+             "T_cam_ref_solved": rs.T_cam_ref, "rms_reprojection_px": rs.rms_px, "chi2": rs.chi2, "dof": rs.dof,
+             "variance_factor": rs.variance_factor, "consistency": cons, "mahalanobis": rs.mahalanobis}
+    for c in rs.cameras:
+        entries[c].update({"T_cam_sonar": rs.T_cam_sonar[c], "covariance": rs.cov[c], "solution": "joint",
+                           "rms_reprojection_px": rs.rms_px[c], "consistency": cons, **sigmas(rs.cov[c])})
+        if c in rs.cov_with_scale:
+            entries[c]["covariance_with_scale"] = rs.cov_with_scale[c]
+    source = f"joint solve of {' + '.join(rs.cameras)} with the stereo transform"
+    scale = _scale_entry(rs.scale, rs.scale_sigma, rs.scale_sigma is not None, source, rs.scale_note,
+                         rs.scale_observable, rs.scale_test)
+    return joint, scale
+
+
+def _single_scale(session, sols: dict, n_cams: int, opts) -> dict:
+    """The range scale block when there is no joint solve."""
+    if opts.estimate_scale is False:
+        return _scale_entry(note="held at 1 (--no-scale)")
+    if n_cams == 1 and sols:
+        only = next(iter(sols.values()))
+        source = f"{only.name} alone"
+        if only.scale_observable:
+            d, assumed = diameter_sigma(session)
+            source = (f"{only.name}: sphere ranges from its apparent size (diameter {1000 * session.sphere_diameter_m:.1f}"
+                      f" ± {1000 * d:.1f} mm{', tolerance assumed: no sphere.diameter_sigma in session.yaml' if assumed else ''})")
+        return _scale_entry(only.scale, only.scale_sigma, only.scale_sigma is not None, source,
+                            only.scale_note, only.scale_observable, only.scale_test)
+    if len(sols) >= 2:
+        shared = _shared(session, sols, opts)
+        if shared is not None:
+            return shared
+    return _scale_entry(note="not observable: the cameras have no stereo transform in session.yaml to tie them and "
+                             "fewer than two record the sphere's range (apparent size)")
+
+
+def _shared(session, sols: dict, opts) -> dict | None:
+    """The range scale from several cameras' diameter evidence (calib_core.solve.shared_scale), or None."""
+    d, assumed = diameter_sigma(session)
+    cams = {c: (s.data, s.used, s.T_cam_sonar) for c, s in sols.items()}
+    mode = "always" if opts.estimate_scale is True else "auto"
+    sh = shared_scale(cams, mode, d / session.sphere_diameter_m, opts.robust)
+    if sh is None:
+        return None
+    source = (f"{' + '.join(sh.per_camera)}: sphere ranges from its apparent size, one scale for all (diameter "
+              f"{1000 * session.sphere_diameter_m:.1f} ± {1000 * d:.1f} mm"
+              f"{', tolerance assumed: no sphere.diameter_sigma in session.yaml' if assumed else ''})")
+    entry = _scale_entry(sh.value, sh.sigma if sh.estimated else None, sh.estimated, source, sh.note, True, sh.test)
+    entry["per_camera"] = sh.per_camera
+    entry["poses"] = sh.poses
+    return entry
+
+
+def _apply_shared_poses(poses: dict, entries: dict) -> None:
+    """Each camera's pose refitted at the shared range scale replaces its s = 1 pose (``independent`` keeps that)."""
+    for c, (T, cov) in poses.items():
+        entries[c].update({"T_cam_sonar": T, "covariance": cov, "solution": "shared range scale", **sigmas(cov)})
 
 
 def calibrate_session(session, detections: dict, options=None, progress=None) -> dict:
@@ -129,72 +250,22 @@ def calibrate_session(session, detections: dict, options=None, progress=None) ->
 
     opts = _options(options)
     dets = pipeline.detect_session(session, detections, progress=progress) if opts.detect else detections
-    warnings: list[str] = []
-    sols: dict[str, CameraSolution] = {}
-    entries: dict[str, dict] = {}
-    errors: list[str] = []
-    cam_names = list(session.cameras)
-    for k, cam in enumerate(cam_names):
-        if progress:
-            progress(k, len(cam_names), f"solving {cam}")
-        corr = pipeline.correspondences(session, dets, cam)
-        model = session.camera_model(cam)
-        try:
-            cd = camera_data(cam, model, corr.capture_ids, corr.uv_px, corr.cov_uv_px2, corr.X_sonar_m, corr.cov_X_m2)
-            sol = solve_camera(cd, estimate_scale=opts.estimate_scale and len(cam_names) == 1, robust=opts.robust,
-                               loo=opts.leave_one_out, check_outliers=opts.check_outliers, seed=opts.seed)
-        except SessionError as e:
-            why = "; ".join(f"{c}: {r}" for c, r in corr.skipped.items())
-            errors.append(e.problem + (f" (skipped: {why})" if why else ""))
-            continue
-        sols[cam] = sol
-        warnings += sol.warnings
-        rel = str(session.cameras[cam].intrinsics_path.relative_to(session.root))
-        entries[cam] = _camera_entry(sol, corr.skipped, rel)
+    sols, entries, errors = _solve_cameras(session, dets, opts, progress)
     if not sols:
         raise SessionError(detections_path(session), "no camera could be calibrated: " + " | ".join(errors))
+    warnings = [w for s in sols.values() for w in s.warnings]
     warnings += [f"{e}; this camera was not calibrated" for e in errors]
-
-    scale = {"value": 1.0, "sigma": None, "estimated": False,
-             "note": "not requested (range scale fixed at 1)" if not opts.estimate_scale else ""}
-    if opts.estimate_scale and len(cam_names) == 1:
-        only = next(iter(sols.values()))
-        scale.update(value=only.scale, sigma=only.scale_sigma, estimated=only.scale_sigma is not None, note=only.scale_note)
-    joint = None
-    solved = [c for c in cam_names if c in sols]
+    joint, scale = (None, None)
+    solved = [c for c in session.cameras if c in sols]
     if len(solved) >= 2 and opts.joint:
-        ref = solved[0]
-        links, stereo_info = {}, {}
-        for c in solved[1:]:
-            T = find_stereo(session.stereo, ref, c)
-            if T is not None:
-                cov, assumed = _stereo_cov(session, f"T_{c}_{ref}")
-                links[c] = Link(T, cov)
-                stereo_info[c] = {"T_cam_ref": T, "covariance": cov, "covariance_assumed": assumed}
-        if links:
-            if progress:
-                progress(len(cam_names), len(cam_names) + 1, "joint solve")
-            rs = solve_rig(sols, links, ref, estimate_scale=opts.estimate_scale, robust=opts.robust)
-            warnings += rs.warnings
-            if any(v["covariance_assumed"] for v in stereo_info.values()):
-                warnings.append("joint solve: no stereo_covariance in session.yaml; assumed 0.05 deg / 1 mm (1-sigma) "
-                                "per axis for the stereo transform")
-            joint = {"reference": ref, "cameras": rs.cameras, "stereo": stereo_info,
-                     "T_cam_ref_solved": rs.T_cam_ref, "rms_reprojection_px": rs.rms_px, "chi2": rs.chi2, "dof": rs.dof,
-                     "variance_factor": rs.variance_factor, "mahalanobis": rs.mahalanobis}
-            for c in rs.cameras:
-                entries[c].update({"T_cam_sonar": rs.T_cam_sonar[c], "covariance": rs.cov[c], "solution": "joint",
-                                   "rms_reprojection_px": rs.rms_px[c], **sigmas(rs.cov[c])})
-                if c in rs.cov_with_scale:
-                    entries[c]["covariance_with_scale"] = rs.cov_with_scale[c]
-            scale.update(value=rs.scale, sigma=rs.scale_sigma, estimated=rs.scale_sigma is not None, note=rs.scale_note)
-        elif opts.estimate_scale:
-            scale["note"] = "not observable: no stereo transform between the cameras in session.yaml"
-    elif opts.estimate_scale and len(cam_names) > 1:
-        scale["note"] = "not observable: the joint solve needs two calibrated cameras and their stereo transform"
-    if opts.estimate_scale and not scale["estimated"] and not any("range scale" in w for w in warnings):
-        warnings.append(f"range scale {scale['note']}; keeping it at 1")
-
+        joint, scale = _joint(session, sols, entries, opts, progress, warnings)
+    if scale is None:
+        scale = _single_scale(session, sols, len(session.cameras), opts)
+        _apply_shared_poses(scale.pop("poses", {}), entries)
+    overall = joint["consistency"] if joint else (entries[solved[0]]["consistency"] if len(solved) == 1 else None)
+    for c in [overall] if overall else [entries[c]["consistency"] for c in solved]:
+        if is_warning(c):
+            warnings.append(consistency_phrase(c))
     tab = None
     if len(solved) >= 2:
         a, b = solved[0], solved[1]
@@ -211,6 +282,7 @@ def calibrate_session(session, detections: dict, options=None, progress=None) ->
         "options": asdict(opts),
         "cameras": entries,
         "range_scale": scale,
+        "consistency": overall,
         "joint": joint,
         "table_i": tab,
         "warnings": warnings,

@@ -1,11 +1,11 @@
 """Per-capture residuals, leave-one-out residuals and outlier flags for one camera's solution.
 
-Flags (each with a reason an operator can act on):
-- ``ransac``: left out of the solve; its Mahalanobis distance exceeds the gate at the consensus
-  pose (the target probably moved between scan and image, or one detection is wrong).
-- ``mahalanobis``: used, but its residual is unusually large for its stated uncertainty (99 %).
-- ``leave-one-out``: solving without it, the pose does not predict it (99.9 %, with the
-  leave-one-out pose uncertainty included): the others disagree with this capture.
+Flags (each with a reason an operator can act on) come from one test only, the gate of
+:mod:`calib_core.solve.gate` (deleted residual against the noise level of the other captures):
+- ``ransac``: left out of the solve (the target probably moved between scan and image, or one
+  detection is wrong);
+- ``gate``: fails the same test but was kept because too few captures would remain.
+The leave-one-out refits are reported as numbers (how far the pose moves without a capture).
 """
 
 from __future__ import annotations
@@ -16,12 +16,15 @@ import numpy as np
 
 from calib_core.geometry import pose_error
 from calib_core.solve.model import CameraData, RigState, per_camera_stats, prediction_jacobian
-from calib_core.solve.pnp import CHI2_2_99, CHI2_2_999
+from calib_core.solve.gate import ALPHA
+
+LOO_REFIT_MAX = 20  # above this many captures, leave-one-out uses the closed form (one refit each is slow)
 from calib_core.solve.refine import RigProblem, refine
 
 
 def leave_one_out(cd: CameraData, used: np.ndarray, T_cam_sonar: np.ndarray, robust=None, progress=None) -> dict:
-    """For each used row: solve without it and predict it.
+    """For each used row: solve without it and predict it (refits up to LOO_REFIT_MAX used rows,
+    the closed form of the linearised problem beyond).
 
     Returns {row: {"residual_px", "mahalanobis", "shift_deg", "shift_mm"}} (needs >= 5 used rows:
     a solve without the row needs 4).
@@ -30,6 +33,8 @@ def leave_one_out(cd: CameraData, used: np.ndarray, T_cam_sonar: np.ndarray, rob
     idx = np.flatnonzero(used)
     if len(idx) < 5:
         return out
+    if len(idx) > LOO_REFIT_MAX:
+        return _loo_linear(cd, used, T_cam_sonar)
     for k, i in enumerate(idx):
         if progress:
             progress(k, len(idx), f"{cd.name} leave-one-out {cd.capture_ids[i]}")
@@ -50,29 +55,44 @@ def leave_one_out(cd: CameraData, used: np.ndarray, T_cam_sonar: np.ndarray, rob
     return out
 
 
-def capture_rows(cd: CameraData, used: np.ndarray, T_cam_sonar: np.ndarray, ransac_m2: np.ndarray,
-                 gate: float, loo: dict, scale: float = 1.0, miss_m: np.ndarray | None = None) -> list[dict]:
-    """One dict per correspondence: residuals (px, normalised, Mahalanobis), leave-one-out, flags."""
+def _loo_linear(cd: CameraData, used: np.ndarray, T_cam_sonar: np.ndarray) -> dict:
+    """Leave-one-out in closed form for the linearised problem (exact for a linear model):
+    deleting row i moves the parameters by ``C J_i^T (I - H_ii)^-1 e_i`` and its whitened
+    prediction residual is ``(I - H_ii)^-1 e_i``."""
+    from calib_core.solve.refine import jacobian, weights_for
+
+    prob = RigProblem([cd], [used])
+    state = RigState(T_cam_sonar, {cd.name: np.eye(4)})
+    Ws, _ = weights_for(prob, state, None, 1.0)
+    e = prob.whitened(state, Ws).reshape(-1, 2)
+    J = jacobian(prob, state, Ws).reshape(-1, 2, 6)
+    C = np.linalg.inv(np.einsum("nij,nik->jk", J, J))
+    H = J @ C @ np.swapaxes(J, 1, 2)
+    A = np.linalg.inv(np.eye(2)[None] - H)
+    e_del = np.einsum("nij,nj->ni", A, e)
+    d = np.einsum("jk,nik,ni->nj", C, J, e_del)
+    r_px = per_camera_stats(cd, T_cam_sonar)[0]
+    out = {}
+    for k, i in enumerate(np.flatnonzero(used)):  # groups keep the used rows in order (one camera)
+        grow = float(np.linalg.norm(e_del[k]) / max(np.linalg.norm(e[k]), 1e-300))
+        out[int(i)] = {"residual_px": float(np.linalg.norm(r_px[i])) * grow,
+                       "mahalanobis": float(math.sqrt(max(e[k] @ e_del[k], 0.0))),
+                       "shift_deg": math.degrees(float(np.linalg.norm(d[k, :3]))), "shift_mm": 1000 * float(np.linalg.norm(d[k, 3:]))}
+    return out
+
+
+def capture_rows(cd: CameraData, used: np.ndarray, T_cam_sonar: np.ndarray, gate_result, loo: dict,
+                 scale: float = 1.0, miss_m: np.ndarray | None = None) -> list[dict]:
+    """One dict per correspondence: residuals (px, normalised, Mahalanobis), the gate's F test,
+    leave-one-out, flags. ``gate_result`` is the :class:`calib_core.solve.gate.GateResult` of
+    the final set (None when there were too few captures to test)."""
     r_px, r_xy, S, m2, depth = per_camera_stats(cd, T_cam_sonar, scale)
-    loo_gate = max(gate, CHI2_2_999)
     rows = []
     for i, cid in enumerate(cd.capture_ids):
-        flags = []
         m = math.sqrt(m2[i]) if math.isfinite(m2[i]) else math.inf
-        if not used[i]:
-            why = "behind the camera" if depth[i] <= 0 else f"Mahalanobis {math.sqrt(ransac_m2[i]):.1f} > gate {math.sqrt(gate):.1f}"
-            if miss_m is not None and math.isfinite(miss_m[i]) and depth[i] > 0:
-                why += f"; its sonar centre misses the image ray by {100 * miss_m[i]:.1f} cm"
-            flags.append({"kind": "ransac", "reason": f"does not fit the other captures ({why}); left out. "
-                          f"Did the target move between the sonar scan and the image, or is a detection wrong?"})
-        elif m2[i] > CHI2_2_99 * gate / CHI2_2_999:
-            flags.append({"kind": "mahalanobis", "reason": f"large residual for its uncertainty (Mahalanobis {m:.1f}); "
-                          f"check this capture's detections"})
-        lo = loo.get(i)
-        if lo is not None and lo["mahalanobis"] ** 2 > loo_gate:
-            flags.append({"kind": "leave-one-out", "reason": f"solving without it, the pose misses it by "
-                          f"{lo['residual_px']:.1f} px (Mahalanobis {lo['mahalanobis']:.1f}); dropping it moves the "
-                          f"pose by {lo['shift_deg']:.2f} deg / {lo['shift_mm']:.1f} mm"})
+        F = crit = None
+        if gate_result is not None:
+            F, crit = float(gate_result.F[i]), float(gate_result.crit[i])
         rows.append({
             "capture": cid,
             "used": bool(used[i]),
@@ -82,8 +102,27 @@ def capture_rows(cd: CameraData, used: np.ndarray, T_cam_sonar: np.ndarray, rans
             "residual_norm_px": float(np.linalg.norm(r_px[i])),
             "residual_normalized": [float(v) for v in r_xy[i]],
             "mahalanobis": m,
+            "gate_F": F,
+            "gate_F_critical": crit,
             "depth_m": float(depth[i]),
-            "loo": lo,
-            "flags": flags,
+            "loo": loo.get(i),
+            "flags": _flags(bool(used[i]), depth[i], F, crit, None if miss_m is None else miss_m[i]),
         })
     return rows
+
+
+def _flags(used: bool, depth: float, F, crit, miss) -> list[dict]:
+    """The gate's verdict on one capture, with a reason an operator can act on."""
+    if F is None or (used and not F > crit):
+        return []
+    if depth <= 0:
+        why = "behind the camera"
+    else:
+        why = f"F = {F:.1f} > {crit:.1f}, false-alarm rate {100 * ALPHA:g} % per camera"
+        if miss is not None and math.isfinite(miss):
+            why += f"; its sonar centre misses the image ray by {100 * miss:.1f} cm"
+    if not used:
+        return [{"kind": "ransac", "reason": f"does not fit the other captures ({why}); left out. "
+                 f"Did the target move between the sonar scan and the image, or is a detection wrong?"}]
+    return [{"kind": "gate", "reason": f"does not fit the other captures ({why}) but was kept: too few "
+             f"captures would remain without it; check this capture's detections"}]

@@ -19,7 +19,6 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from calib_core.camera import CameraModel, pi_jacobian
 from calib_core.errors import SessionError
@@ -49,6 +48,7 @@ def log_so3(R: np.ndarray) -> np.ndarray:
     if th < 1e-6:
         return v * (1.0 + th * th / 6.0)
     if th > math.pi - 1e-3:
+        from scipy.spatial.transform import Rotation  # lazy: scipy.spatial costs start-up time
         return Rotation.from_matrix(R).as_rotvec()
     return v * (th / math.sin(th))
 
@@ -75,9 +75,18 @@ class CameraData:
     cov_X_m2: np.ndarray
     xy: np.ndarray = field(repr=False, default=None)
     cov_xy: np.ndarray = field(repr=False, default=None)
+    range_m: np.ndarray | None = field(repr=False, default=None)
+    range_sigma_m: np.ndarray | None = field(repr=False, default=None)
 
     def __len__(self) -> int:
         return len(self.capture_ids)
+
+    def has_ranges(self, mask: np.ndarray) -> bool:
+        """Whether every row in ``mask`` carries a camera range (sphere's apparent size) and its sigma."""
+        if self.range_m is None or self.range_sigma_m is None or not np.any(mask):
+            return False
+        r, s = self.range_m[mask], self.range_sigma_m[mask]
+        return bool(np.all(np.isfinite(r)) and np.all(np.isfinite(s)) and np.all(s > 0) and np.all(r > 0))
 
 
 def _sym_pd(C: np.ndarray, what: str, name: str) -> np.ndarray:
@@ -87,8 +96,12 @@ def _sym_pd(C: np.ndarray, what: str, name: str) -> np.ndarray:
     return C
 
 
-def camera_data(name: str, cam: CameraModel, capture_ids, uv_px, cov_uv_px2, X_sonar_m, cov_X_m2) -> CameraData:
-    """Check shapes and values, and add normalised coordinates (P-hat^-1) with their covariances."""
+def camera_data(name: str, cam: CameraModel, capture_ids, uv_px, cov_uv_px2, X_sonar_m, cov_X_m2,
+                range_m=None, range_sigma_m=None) -> CameraData:
+    """Check shapes and values, and add normalised coordinates (P-hat^-1) with their covariances.
+
+    ``range_m`` / ``range_sigma_m`` (optional, (N,), NaN where unknown): the camera-to-sphere-centre
+    distance from the sphere's apparent size and the known diameter, and its 1-sigma."""
     ids = [str(c) for c in capture_ids]
     n = len(ids)
     uv = np.asarray(uv_px, float).reshape(n, 2)
@@ -102,7 +115,9 @@ def camera_data(name: str, cam: CameraModel, capture_ids, uv_px, cov_uv_px2, X_s
     xy = cam.normalize(uv)
     A = np.linalg.inv(cam.distort_jacobian(xy))
     cxy = A @ cuv @ np.swapaxes(A, 1, 2)
-    return CameraData(name, cam, ids, uv, cuv, X, cX, xy, 0.5 * (cxy + np.swapaxes(cxy, 1, 2)))
+    rng = None if range_m is None else np.asarray(range_m, float).reshape(n)
+    rsig = None if range_sigma_m is None else np.asarray(range_sigma_m, float).reshape(n)
+    return CameraData(name, cam, ids, uv, cuv, X, cX, xy, 0.5 * (cxy + np.swapaxes(cxy, 1, 2)), rng, rsig)
 
 
 @dataclass

@@ -44,7 +44,7 @@ class RigProblem:
     """Correspondences of one or more cameras (cams[0] is the reference) and how they are tied."""
 
     def __init__(self, cams: list[CameraData], masks: list[np.ndarray] | None = None,
-                 links: dict[str, Link] | None = None, estimate_scale: bool = False):
+                 links: dict[str, Link] | None = None, estimate_scale: bool = False, use_ranges: bool = False):
         self.cams = cams
         self.names = [c.name for c in cams]
         self.masks = [np.ones(len(c), bool) if masks is None else np.asarray(masks[i], bool) for i, c in enumerate(cams)]
@@ -57,6 +57,10 @@ class RigProblem:
         self.free_links = [n for n in self.names[1:] if self.links[n].cov is not None]
         self._prior_W = {n: np.linalg.inv(np.linalg.cholesky(self.links[n].cov)) for n in self.free_links}
         self.n_params = 6 + 6 * len(self.free_links) + (1 if estimate_scale else 0)
+        # camera ranges (sphere's apparent size) of the reference camera's used rows
+        self.range_rows = np.flatnonzero(self.masks[0]) if use_ranges else np.zeros(0, int)
+        if use_ranges and not cams[0].has_ranges(self.masks[0]):
+            raise ValueError("use_ranges needs a range for every used row of the reference camera")
 
     @property
     def n_captures(self) -> int:
@@ -64,7 +68,7 @@ class RigProblem:
 
     @property
     def n_residuals(self) -> int:
-        return sum(2 * len(g.ids) * len(g.cams) for g in self.groups) + 6 * len(self.free_links)
+        return sum(2 * len(g.ids) * len(g.cams) for g in self.groups) + 6 * len(self.free_links) + len(self.range_rows)
 
     def param_names(self) -> list[str]:
         names = [f"{self.names[0]}.{a}" for a in ("rx", "ry", "rz", "tx", "ty", "tz")]
@@ -117,7 +121,43 @@ class RigProblem:
             r = (pred - g.xy).reshape(len(g.ids), -1)
             parts.append(np.einsum("gij,gj->gi", W, r).ravel())
         parts.append(self.prior_residuals(state))
+        if len(self.range_rows):
+            parts.append(Ws[-1] * self.range_residuals(state))
         return np.concatenate(parts)
+
+    def _range_points(self, state: RigState):
+        """Reference-camera points of the range rows: (sonar points rotated and rescaled, camera points)."""
+        cd = self.cams[0]
+        T = state.T_ref_sonar
+        RX = cd.X_sonar_m[self.range_rows] @ T[:3, :3].T / state.scale
+        return RX, RX + T[:3, 3]
+
+    def range_residuals(self, state: RigState) -> np.ndarray:
+        """Predicted minus measured camera range (m) of every range row."""
+        _, P = self._range_points(state)
+        return np.linalg.norm(P, axis=1) - self.cams[0].range_m[self.range_rows]
+
+    def range_weights(self, state: RigState) -> np.ndarray:
+        """1 / sigma of each range residual: the range's own sigma and the sonar centre's covariance
+        along the camera ray (its cross-covariance with the image residual is neglected: it vanishes
+        for an isotropic sonar covariance, since the image does not see motion along the ray)."""
+        cd = self.cams[0]
+        _, P = self._range_points(state)
+        u = P / np.linalg.norm(P, axis=1, keepdims=True)
+        A = state.T_ref_sonar[:3, :3] / state.scale
+        C = A @ cd.cov_X_m2[self.range_rows] @ A.T
+        var = cd.range_sigma_m[self.range_rows] ** 2 + np.einsum("ni,nij,nj->n", u, C, u)
+        return 1.0 / np.sqrt(var)
+
+    def _range_jacobian(self, st: RigState, theta: np.ndarray, w: np.ndarray) -> np.ndarray:
+        RX, P = self._range_points(st)
+        u = P / np.linalg.norm(P, axis=1, keepdims=True)
+        J = np.zeros((len(P), self.n_params))
+        J[:, 0:3] = -np.einsum("ni,nij->nj", u, skew_batch(RX)) @ left_jacobian(theta[0:3])
+        J[:, 3:6] = u
+        if self.estimate_scale:
+            J[:, -1] = -np.sum(u * RX, axis=1) / st.scale
+        return w[:, None] * J
 
     def whitened_jacobian(self, state: RigState, theta: np.ndarray, Ws: list[np.ndarray]) -> np.ndarray:
         """Analytic d whitened() / d theta at ``apply(state, theta)`` (prior rows by central differences)."""
@@ -159,6 +199,8 @@ class RigProblem:
             Jp[:3, i:i + 3] = np.linalg.solve(left_jacobian(e), left_jacobian(theta[i:i + 3]))
             Jp[3:, i + 3:i + 6] = np.eye(3)
             blocks.append(self._prior_W[name] @ Jp)
+        if len(self.range_rows):
+            blocks.append(self._range_jacobian(st, theta, Ws[-1]))
         return np.vstack(blocks)
 
 
@@ -232,6 +274,8 @@ def weights_for(problem: RigProblem, state: RigState, loss: str | None, k: float
         w = irls_weights(mahalanobis2(r, S), loss, k)
         Ws.append(whitening(S) * np.sqrt(w)[:, None, None])
         ws.append(w)
+    if len(problem.range_rows):
+        Ws.append(problem.range_weights(state))
     return Ws, ws
 
 

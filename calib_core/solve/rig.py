@@ -22,7 +22,8 @@ import numpy as np
 from calib_core.geometry import invert_T
 from calib_core.solve.model import RigState, per_camera_stats
 from calib_core.solve.refine import Link, RigProblem, pose_covariance, refine
-from calib_core.solve.single import CameraSolution, scale_observability
+from calib_core.solve.scale import choose_scale, scale_mode
+from calib_core.solve.single import CameraSolution
 
 # Assumed stereo uncertainty when none is given: a good checkerboard stereo calibration
 # (about 0.05 deg per axis and 1 mm per axis, 1-sigma). An assumption, said in the output.
@@ -64,11 +65,16 @@ class RigSolution:
     mahalanobis: dict = field(default_factory=dict)
     warnings: list = field(default_factory=list)
     cov_with_scale: dict = field(default_factory=dict)
+    scale_observable: bool = False
+    scale_test: dict | None = None
 
 
 def solve_rig(solutions: dict[str, CameraSolution], links: dict[str, Link], reference: str,
-              estimate_scale: bool = False, robust: str | None = None) -> RigSolution:
-    """Joint solve of ``reference`` and every camera in ``links`` (starting from the single solves)."""
+              estimate_scale: bool | str | None = None, robust: str | None = None) -> RigSolution:
+    """Joint solve of ``reference`` and every camera in ``links`` (starting from the single solves).
+
+    ``estimate_scale``: None / "auto" (default) estimates the range scale when the F test of
+    :mod:`calib_core.solve.scale` asks for it, True / "always" whenever observable, False holds it at 1."""
     names = [reference] + [n for n in links if n != reference]
     cams = [solutions[n].data for n in names]
     masks = [solutions[n].used for n in names]
@@ -76,16 +82,11 @@ def solve_rig(solutions: dict[str, CameraSolution], links: dict[str, Link], refe
     prob = RigProblem(cams, masks, {n: links[n] for n in names[1:]})
     res = refine(prob, state, robust=robust)
     warnings: list[str] = []
-    scale_sigma, note = None, "not requested (range scale fixed at 1)"
-    if estimate_scale:
-        prob_s = RigProblem(cams, masks, {n: links[n] for n in names[1:]}, estimate_scale=True)
-        ok, sig, note = scale_observability(prob_s, res.state)
-        if ok:
-            res, prob = refine(prob_s, res.state, robust=robust), prob_s
-            scale_sigma = math.sqrt(res.cov[-1, -1] * max(1.0, res.variance_factor))
-            note = f"estimated jointly with the stereo transform (1-sigma {100 * scale_sigma:.3f} %)"
-        else:
-            warnings.append(f"joint solve: range scale {note}; keeping it at 1")
+    prob_s = RigProblem(cams, masks, {n: links[n] for n in names[1:]}, estimate_scale=True)
+    ch = choose_scale(prob, res, prob_s, scale_mode(estimate_scale), robust)
+    res, prob = ch.res, ch.problem
+    scale_sigma = math.sqrt(res.cov[-1, -1] * max(1.0, res.variance_factor)) if ch.estimated else None
+    note = ch.note
     vf = res.variance_factor if res.dof > 0 else 1.0
     Ts = {n: res.state.T_cam_sonar(n) for n in names}
     covs = {n: pose_covariance(prob, res, n) * max(1.0, vf) for n in names}
@@ -95,11 +96,8 @@ def solve_rig(solutions: dict[str, CameraSolution], links: dict[str, Link], refe
         r_px, _, _, m2, _ = per_camera_stats(cd, Ts[n], res.state.scale)
         rms[n] = float(np.sqrt(np.mean(np.sum(r_px[m] ** 2, axis=1))))
         mah[n] = {cid: float(math.sqrt(v)) if math.isfinite(v) else math.inf for cid, v in zip(cd.capture_ids, m2)}
-    if res.dof > 0 and vf > 4.0:
-        warnings.append(f"joint solve: residuals are {math.sqrt(vf):.1f}x the stated uncertainty; the cameras and "
-                        f"the stereo transform disagree (is the stereo transform from this rig, in this order?)")
     return RigSolution(reference, names, Ts, covs, dict(res.state.T_cam_ref), res.state.scale, scale_sigma, note,
-                       rms, res.chi2, res.dof, vf, mah, warnings, covs7)
+                       rms, res.chi2, res.dof, vf, mah, warnings, covs7, ch.observable, ch.test)
 
 
 def find_stereo(stereo: dict, a: str, b: str) -> np.ndarray | None:

@@ -11,8 +11,8 @@ from calib_core.solve.diagnostics import capture_rows, leave_one_out
 from calib_core.solve.model import CameraData, RigState, check_count, per_camera_stats
 from calib_core.solve.pnp import layout_warnings, ransac_pose
 from calib_core.solve.refine import RigProblem, refine
+from calib_core.solve.scale import ScaleChoice, choose_scale, diameter_term, scale_mode
 
-MAX_SCALE_SIGMA = 0.01  # a range scale known worse than 1 % is not worth estimating
 
 
 @dataclass
@@ -49,6 +49,8 @@ class CameraSolution:
     variance_factor: float
     rows: list = field(default_factory=list)
     warnings: list = field(default_factory=list)
+    scale_observable: bool = False
+    scale_test: dict | None = None
 
     @property
     def captures_used(self) -> list[str]:
@@ -60,27 +62,24 @@ class CameraSolution:
                  "kinds": [f["kind"] for f in r["flags"]]} for r in self.rows if r["flags"]]
 
 
-def scale_observability(problem: RigProblem, state: RigState, max_sigma: float = MAX_SCALE_SIGMA):
-    """(observable, sigma of the scale, note) from the information matrix with the scale freed."""
-    from calib_core.solve.refine import covariance_from_jacobian, jacobian, weights_for
-
-    Ws, _ = weights_for(problem, state, None, 1.0)
-    cov, eigmin = covariance_from_jacobian(jacobian(problem, state, Ws))
-    sigma = math.sqrt(max(cov[-1, -1], 0.0))
-    if eigmin < 1e-9:
-        if len(problem.cams) == 1:
-            return False, math.inf, ("not observable from one camera alone: scaling the sonar cloud about its "
-                                     "origin looks the same to the camera as a longer or shorter camera-sonar "
-                                     "translation. Estimate it jointly with a second camera and the stereo transform")
-        return False, math.inf, "not observable from this data (the information matrix is singular)"
-    if sigma > max_sigma:
-        return False, sigma, (f"too weakly observable (1-sigma {100 * sigma:.2f} % > {100 * max_sigma:.1f} %): "
-                              f"spread the sphere over a wider range of distances and the whole shared view")
-    return True, sigma, f"estimated (1-sigma {100 * sigma:.3f} %)"
+def _scale_choice(cd: CameraData, used, prob, res, estimate_scale, robust, diameter_rel_sigma: float):
+    """Range scale of one camera: through its ranges (sphere's apparent size) when every used row
+    has one, else (not observable) held at 1. Returns (ScaleChoice, extra covariance)."""
+    mode = scale_mode(estimate_scale)
+    if mode == "never" or not cd.has_ranges(used):
+        return choose_scale(prob, res, RigProblem([cd], [used], estimate_scale=True), mode, robust), 0.0
+    prob_r = RigProblem([cd], [used], use_ranges=True)
+    res_r = refine(prob_r, res.state, robust=robust)
+    ch = choose_scale(prob_r, res_r, RigProblem([cd], [used], estimate_scale=True, use_ranges=True), mode, robust,
+                      systematic_var=diameter_rel_sigma**2)
+    if not ch.estimated:  # keep the solve without ranges: no diameter systematic in the pose
+        return ScaleChoice(res, prob, False, ch.observable, ch.note, ch.test), 0.0
+    return ch, diameter_term(ch.problem, ch.res, diameter_rel_sigma, robust)
 
 
-def solve_camera(cd: CameraData, estimate_scale: bool = False, robust: str | None = None, loo: bool = True,
-                 check_outliers: bool = True, seed: int = 0, progress=None) -> CameraSolution:
+def solve_camera(cd: CameraData, estimate_scale: bool | str | None = None, robust: str | None = None, loo: bool = True,
+                 check_outliers: bool = True, seed: int = 0, progress=None,
+                 diameter_rel_sigma: float = 0.0) -> CameraSolution:
     """Calibrate one camera to the sonar from its correspondences (see the package doc).
 
     Raises SessionError when fewer than 4 correspondences are usable.
@@ -93,20 +92,17 @@ def solve_camera(cd: CameraData, estimate_scale: bool = False, robust: str | Non
     state0 = RigState(start.T_cam_sonar, {cd.name: np.eye(4)})
     prob = RigProblem([cd], [used])
     res = refine(prob, state0, robust=robust)
-    cov_scale, scale_sigma, scale_note = None, None, "not requested (range scale fixed at 1)"
-    if estimate_scale:
-        prob_s = RigProblem([cd], [used], estimate_scale=True)
-        ok, sig, scale_note = scale_observability(prob_s, res.state)
-        if ok:
-            res_s = refine(prob_s, res.state, robust=robust)
-            res, prob = res_s, prob_s
-            scale_sigma = math.sqrt(res.cov[-1, -1] * max(1.0, res.variance_factor))
-        else:
-            warnings.append(f"{cd.name}: range scale {scale_note}; keeping it at 1")
+    cov_scale, scale_sigma = None, None
+    ch, extra = _scale_choice(cd, used, prob, res, estimate_scale, robust, diameter_rel_sigma)
+    res, prob, scale_note = ch.res, ch.problem, ch.note
+    if scale_mode(estimate_scale) == "always" and not ch.observable:
+        warnings.append(f"{cd.name}: range scale {scale_note}; keeping it at 1")
     T = res.state.T_ref_sonar
     vf = res.variance_factor if res.dof > 0 else 1.0
     inflate = max(1.0, vf)
-    cov_full = res.cov * inflate
+    cov_full = res.cov * inflate + extra
+    if ch.estimated:
+        scale_sigma = math.sqrt(cov_full[-1, -1])
     cov6 = cov_full[:6, :6]
     if prob.estimate_scale:
         cov_scale = cov_full
@@ -118,10 +114,7 @@ def solve_camera(cd: CameraData, estimate_scale: bool = False, robust: str | Non
     if 3 * sig_r.max() > 1.0 or 3 * sig_t.max() > 30.0:
         warnings.append(f"{cd.name}: the pose is uncertain (3-sigma up to {3 * sig_r.max():.2f} deg, "
                         f"{3 * sig_t.max():.0f} mm): add captures spread over the view and over distance")
-    if res.dof > 0 and vf > 4.0:
-        warnings.append(f"{cd.name}: residuals are {math.sqrt(vf):.1f}x what the detection uncertainties predict; "
-                        f"the covariance was inflated to match (check intrinsics, detections, target motion)")
     loo_res = leave_one_out(cd, used, T, robust=robust, progress=progress) if loo else {}
-    rows = capture_rows(cd, used, T, start.mahalanobis2, start.gate, loo_res, res.state.scale, start.miss_m)
+    rows = capture_rows(cd, used, T, start.gate_result, loo_res, res.state.scale, start.miss_m)
     return CameraSolution(cd.name, cd, T, cov6, cov_scale, res.state.scale, scale_sigma, scale_note, used, rms,
-                          res.chi2, res.dof, vf, rows, warnings)
+                          res.chi2, res.dof, vf, rows, warnings, ch.observable, ch.test)

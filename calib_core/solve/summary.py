@@ -75,9 +75,25 @@ def table_i_rows(cal: dict) -> tuple[list[str], list[list[str]]] | None:
 
 
 def scale_line(cal: dict) -> str:
+    """The one phrase for the range scale (CLI, report, workbench)."""
     s = cal.get("range_scale") or {}
-    if s.get("estimated"):
-        return (f"range scale {s['value']:.5f} ± {s['sigma']:.5f} (1-sigma; sound speed in the cloud is "
-                f"{100 * (s['value'] - 1):+.2f} % off): divide cloud points by it before applying T_cam_sonar")
     note = s.get("note") or "not estimated"
-    return note if "fixed at 1" in note else f"range scale fixed at 1 ({note})"
+    if s.get("estimated") and isinstance(s.get("value"), (int, float)):
+        return (f"range scale {s['value']:.5f} ± {_f(s.get('sigma'), '.5f')} (1-sigma; sound speed in the cloud "
+                f"{100 * (s['value'] - 1):+.2f} % off; from {s.get('source') or '-'}; {note}): divide cloud points "
+                f"by it before applying T_cam_sonar")
+    value = s.get("value", 1.0)
+    head = "range scale held at 1" if value in (None, 1, 1.0) else f"range scale {value:g}"
+    if note.startswith("not observable") or note.startswith("too weakly"):
+        return f"{head}: the scale is {note}"
+    return f"{head}: {note}"
+
+
+def consistency_lines(cal: dict) -> list[str]:
+    """The one consistency statistic (:mod:`calib_core.solve.consistency`): one line for the final
+    solve, or one per camera when the cameras were solved apart."""
+    from calib_core.solve.consistency import consistency_phrase
+
+    if cal.get("consistency"):
+        return [consistency_phrase(cal["consistency"])]
+    return [consistency_phrase(c["consistency"]) for c in cal.get("cameras", {}).values() if c.get("consistency")]

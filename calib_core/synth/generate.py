@@ -108,6 +108,9 @@ def generate_session(out_dir, preset, seed: int, progress=None, **overrides) -> 
                 image_centers[moved_idx] = cand
                 break
     drift_idx = int(r_rig.integers(P.n_captures)) if P.drift_m > 0 else -1
+    decoy_idx = -1
+    if P.decoy_hidden:
+        decoy_idx = (moved_idx + 1 + int(r_rig.integers(P.n_captures - 1))) % P.n_captures
     if P.scene == "room":
         static += room.room_scene(r_scene, seabed_z, centers + image_centers)
         ball = room.ball_style(r_rig)
@@ -152,6 +155,9 @@ def generate_session(out_dir, preset, seed: int, progress=None, **overrides) -> 
         if is_target:
             scan_scene = Scene(tuple(static + target_parts(centers[k], r_cap) + extra))
             img_scene = scan_scene if k != moved_idx else Scene(tuple(static + target_parts(image_centers[k], r_cap) + extra))
+            if k == decoy_idx:
+                trick = world.decoy_and_occluder(r_cap, rig, centers[k], radius, style, P.bright)
+                img_scene = Scene(tuple(img_scene.primitives) + tuple(trick))
         else:
             scan_scene = img_scene = Scene(tuple(static + world.flange_assembly(r_cap, rig, surface_z)))
         cloud = simulate_range(P.range_sensor, scan_scene, rig.T_world_sonar, cfg, r_cap)

@@ -38,6 +38,9 @@ class Preset:
     drift_m: one capture's sphere drifts this far (m) during its scan; the session then holds
         ``frames/<cam>/<id>_<j>.jpg`` recorded during that scan (a bag written from it shows the drift).
     corner_fraction: share of captures aimed near an image corner.
+    decoy_hidden: one capture (not the moved one) shows cam1 a decoy that looks exactly like the
+        target beside it while a panel hides half of the true target (image only): a wrong image
+        detection (calib_core.synth.world.decoy_and_occluder).
     """
 
     name: str
@@ -70,6 +73,7 @@ class Preset:
     diameter_range: tuple = (0.18, 0.30)
     drift_m: float = 0.0
     turbidity: float = 0.0
+    decoy_hidden: bool = False
 
     def with_(self, **changes) -> "Preset":
         """A copy with some fields changed (e.g. ``scale=0.25`` for fast tests)."""
@@ -120,6 +124,11 @@ _LIST += [
     Preset("turbid", "turbid water: strong attenuation and veil, blur; contrast falls with distance",
            n_captures=9, pan_step_deg=0.75, turbidity=0.5),
 ]
+
+_LIST.append(Preset(
+    "review", "the workbench's review loop: one capture whose image shows a look-alike decoy beside the "
+    "half-hidden target (a wrong image detection) and one whose target moved between scan and image",
+    n_captures=8, pan_step_deg=0.75, moved=True, decoy_hidden=True))
 
 PRESETS: dict[str, Preset] = {p.name: p for p in _LIST}
 

@@ -221,3 +221,33 @@ def flange_assembly(rng, rig, surface_z: float):
     pipe = Cylinder(tuple(p0), tuple(p1), r, STEEL, tag="pipe")
     ropes = [chain(rng, p + [0, 0, r], surface_z, 0.005, tag="rope", links=False) for p in (p0 + a * 0.2, p1 - a * 0.2)]
     return [pipe, flange] + [rp for rp in ropes if rp is not None]
+
+
+def decoy_and_occluder(rng, rig, target_world, radius_m: float, style: dict, bright: bool):
+    """A wrong-image-detection scene for cam1: a fully visible decoy that looks exactly like the
+    target (same size, same mesh) beside it at about the same range, and a dark panel between
+    cam1 and the target whose edge crosses the target's centre, hiding about half of it.
+    Both are put in the image only (the scan is taken without them)."""
+    cam, T_wc = rig.cams["cam1"]
+    eye = T_wc[:3, 3]
+    d = np.asarray(target_world, float) - eye
+    rng_m = float(np.linalg.norm(d))
+    right, down = T_wc[:3, 0], T_wc[:3, 1]
+    side = right if rng.random() < 0.5 else -right
+    uv_t = cam.project(transform_points(np.linalg.inv(T_wc), np.asarray([target_world], float)))[0] \
+        if hasattr(cam, "project") else None
+    if uv_t is not None and not (0.3 * cam.width_px < uv_t[0] < 0.7 * cam.width_px):
+        side = right if uv_t[0] < 0.5 * cam.width_px else -right  # towards the image centre
+    decoy_c = eye + d + side * (6.0 * radius_m) + down * (0.5 * radius_m)
+    decoy = MeshSphere(tuple(decoy_c), radius_m, BRIGHT_MESH if bright else DARK_MESH, n_lat=style["n_lat"],
+                       n_lon=style["n_lon"], wire_m=style["wire_m"], pole=style["pole"], tag="decoy")
+    # the panel's near edge passes through the line of sight to the target centre, on the far side
+    # from the decoy, so the target keeps its visible half next to the panel
+    at = eye + 0.6 * d
+    half = 0.4 * 0.6 * rng_m
+    centre = at - side * half
+    n = -d / rng_m
+    u = side - (side @ n) * n
+    panel = Rect(tuple(centre), tuple(n), (half, half), u=tuple(u / np.linalg.norm(u)), material=Material((0.05, 0.06, 0.07), 0.6),
+                 tag="occluder")
+    return [decoy, panel]

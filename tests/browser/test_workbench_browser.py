@@ -12,20 +12,15 @@ from __future__ import annotations
 import json
 import math
 import re
-import shutil
 import time
 import zipfile
-from pathlib import Path
 
-import cv2
 import numpy as np
 import pytest
 
-pytestmark = pytest.mark.browser
+from browser_util import canvas_box, choose, chromium, page_text, shot
 
-ARTIFACTS = Path(__file__).resolve().parents[2] / "test-artifacts"
-CHROMIUM_ARGS = ["--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
-                 "--disable-background-networking", "--disable-component-update", "--disable-sync"]
+pytestmark = pytest.mark.browser
 
 
 T0 = [time.monotonic()]
@@ -63,38 +58,11 @@ def workbench(session_root):
 
 @pytest.fixture(scope="module")
 def browser(tmp_path_factory):
-    from playwright.sync_api import sync_playwright
-
-    exe = shutil.which("chromium")
-    if exe is None:
-        pytest.skip("Debian chromium is not installed")
-    with sync_playwright() as p:
-        ctx = p.chromium.launch_persistent_context(str(tmp_path_factory.mktemp("chromium")), executable_path=exe,
-                                                   headless=True, args=CHROMIUM_ARGS,
-                                                   viewport={"width": 1500, "height": 860})
-        ctx.set_default_timeout(30_000)
-        yield ctx
-        ctx.close()
-
-
-def shot(page, name: str) -> np.ndarray:
-    ARTIFACTS.mkdir(exist_ok=True)
-    png = page.screenshot(path=str(ARTIFACTS / name))
-    return cv2.imdecode(np.frombuffer(png, np.uint8), cv2.IMREAD_COLOR)
-
-
-def canvas_box(page):
-    boxes = [b for b in (c.bounding_box() for c in page.locator("canvas").all()) if b]
-    return max(boxes, key=lambda b: b["width"] * b["height"])
-
-
-def page_text(page) -> str:
-    return page.locator("body").inner_text()
-
-
-def choose(page, combobox: str, option: str) -> None:
-    page.get_by_role("combobox", name=combobox).click()
-    page.get_by_role("option", name=option, exact=True).click()
+    try:
+        with chromium(tmp_path_factory.mktemp("chromium")) as ctx:
+            yield ctx
+    except FileNotFoundError as e:
+        pytest.skip(str(e))
 
 
 def click_pixel(page, wb, client, cam: str, uv) -> None:
@@ -243,12 +211,14 @@ def test_operator_session_in_chromium(workbench, browser, session_root):
     page2.set_viewport_size({"width": 1000, "height": 700})  # a smaller canvas: less software rendering
     page2.goto(wb.url)
     page2.get_by_text("Captures (worst first)").wait_for()
-    wait_for(lambda: re.search(r"p03\s+rejected", page_text(page2)), 20, "p03 rejected in the second page")
+    wait_for(lambda: re.search(r"p03\s+\S*\s*rejected", page_text(page2)), 20, "p03 rejected in the second page")
     # p02 corrected, with the residual of the new calibration (the review table, no tab switch: with
     # two pages in software WebGL, input events are slow)
-    m = wait_for(lambda: re.search(r"p02\s+auto [\d.]+\s+corrected · ([\d.]+) px", page_text(page2)), 20,
+    m = wait_for(lambda: re.search(r"p02\s+\S+\s+auto\s+[\d.]+\s+\S+\s+corrected\s+·\s+([\d.]+)\s+px", page_text(page2)), 20,
                  "p02's residual in the second page")
-    assert abs(float(m.group(1)) - row["residual_norm_px"]) <= 0.051
+    # one definition, shown alike (to the last digit, give or take the solver's own re-detection of
+    # automatic entries, which can move a sonar centre by a fraction of a millimetre)
+    assert abs(float(m.group(1)) - row["residual_norm_px"]) <= 0.011
     page2.close()
 
     # 6. undo from the page restores p04's automatic entry (and records it)

@@ -1,0 +1,167 @@
+"""Run automatic detections over captures in parallel processes (deterministic results).
+
+Results come back in the order of the task list whatever order the processes finish in, and
+each detection is a pure function of its inputs, so the merged detections do not depend on
+the number of processes. Progress is reported as tasks finish.
+
+The pool uses a fork server (a clean process that imported the detectors once and forks the
+workers): forking the caller itself can deadlock, since OpenCV's and BLAS's thread pools (and
+the workbench's server threads) do not survive a fork. As with any spawn / fork-server pool, a
+calling script needs an ``if __name__ == "__main__":`` guard; without one the pool breaks and
+detection runs in process instead. ``SONARCAL_WORKERS`` overrides the process count (1: in
+process).
+"""
+
+from __future__ import annotations
+
+import os
+
+_DATA = None  # the SessionData of this worker process (set by _init)
+
+
+def worker_count(n_tasks: int, workers: int | None = None) -> int:
+    if workers is None:
+        env = os.environ.get("SONARCAL_WORKERS", "").strip()
+        workers = int(env) if env.isdigit() and int(env) > 0 else (os.cpu_count() or 1)
+    return max(1, min(int(workers), n_tasks))
+
+
+def _init(data) -> None:
+    global _DATA
+    _DATA = data
+    try:
+        import cv2
+
+        cv2.setNumThreads(1)  # one process per core already
+        # as the CLI does in its own process: OpenCV's decoder warnings would add lines to stderr
+        cv2.utils.logging.setLogLevel(cv2.utils.logging.LOG_LEVEL_ERROR if os.environ.get("SONARCAL_DEBUG")
+                                      else cv2.utils.logging.LOG_LEVEL_SILENT)
+    except (ImportError, AttributeError):  # pragma: no cover
+        pass
+
+
+def _task(item):
+    """(cid, sensor, entry) or (cid, sensor, SessionError parts): SessionError does not pickle.
+    A sonar task carries the session's beam width (estimated after the pool started)."""
+    from calib_core.errors import SessionError
+    from calib_core.pipeline import detect_one
+
+    cid, sensor, beam = item
+    if beam is not None:
+        _DATA.beam_width_deg = beam
+    try:
+        return cid, sensor, detect_one(_DATA, cid, sensor)
+    except SessionError as e:
+        return cid, sensor, ("error", None if e.path is None else str(e.path), e.problem)
+
+
+def _crop_task(cid, detections):
+    """One capture's crop for the beam-width estimate (None when no sphere is found there)."""
+    from calib_core.errors import SessionError
+    from calib_core.pipeline import beam_crop_of
+
+    try:
+        return beam_crop_of(_DATA, cid, detections)
+    except SessionError:
+        return None  # its own sonar task reports the problem
+
+
+def _scan_task(crops):
+    from calib_core.pipeline import beam_width_from_crops
+
+    return beam_width_from_crops(_DATA, crops)
+
+
+def _cloud_readers(data, todo) -> list[str]:
+    """open3d when sonar tasks will read .ply / .pcd clouds: imported once in the fork server
+    rather than once in every worker (it takes about a second)."""
+    cids = {cid for cid, sensor in todo if sensor == "sonar"}
+    suffixes = {data.session.capture(c).cloud_path.suffix.lower() for c in cids}
+    return ["open3d"] if suffixes & {".ply", ".pcd"} else []
+
+
+def _prepare(data, todo) -> None:
+    """Camera models and background models, computed once in the parent for every worker."""
+    for cam in {sensor for _, sensor in todo if sensor != "sonar"}:
+        data.camera(cam)
+        data.background(cam)
+
+
+def _unwrap(cid, sensor, out):
+    from calib_core.errors import SessionError
+
+    if isinstance(out, tuple) and out and out[0] == "error":
+        raise SessionError(out[1], out[2])
+    return cid, sensor, out
+
+
+def run_detections(data, todo: list[tuple[str, str]], progress=None, workers: int | None = None,
+                   beam_ids: list | None = None, beam_detections: dict | None = None) -> list:
+    """[(capture_id, sensor, entry)] for every (capture_id, sensor) in ``todo``, in that order.
+
+    With ``beam_ids``, the session's effective beam width is first estimated from those
+    captures' clouds (``data.beam_width_deg`` is set) and the sonar detections use it; in a pool
+    the image detections run meanwhile."""
+    from concurrent.futures.process import BrokenProcessPool
+
+    from calib_core.pipeline import detect_one, session_beam_width
+
+    n = worker_count(len(todo) + (1 if beam_ids else 0), workers)
+    if n > 1:
+        try:
+            return _run_pool(data, todo, progress, n, beam_ids or [], beam_detections or {})
+        except (BrokenProcessPool, BrokenPipeError, EOFError):
+            pass  # e.g. a calling script without an ``if __name__ == "__main__":`` guard: run in process
+    if beam_ids:
+        data.beam_width_deg = session_beam_width(data, beam_ids, beam_detections or {})
+    out = []
+    for i, (cid, sensor) in enumerate(todo):
+        if progress:
+            progress(i, len(todo), f"{cid} {sensor}")
+        out.append((cid, sensor, detect_one(data, cid, sensor)))
+    return out
+
+
+def _run_pool(data, todo, progress, n: int, beam_ids: list, beam_detections: dict) -> list:
+    import multiprocessing as mp
+    from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+
+    from calib_core.pipeline import beam_capture_ids
+
+    from multiprocessing import forkserver
+
+    ctx = mp.get_context("forkserver")
+    ctx.set_forkserver_preload(["calib_core.pipeline", "calib_core.detect.image", "calib_core.detect.sonar",
+                                *_cloud_readers(data, todo)])
+    forkserver.ensure_running()  # the server imports the detectors on the other core while we prepare
+    _prepare(data, todo)
+    results: list = [None] * len(todo)
+    if progress:
+        progress(0, len(todo), f"detecting in {n} processes")
+    later = [k for k, t in enumerate(todo) if beam_ids and t[1] == "sonar"]
+    crop_ids = beam_capture_ids(beam_ids) if beam_ids else []
+    crops: dict = {}
+    with ProcessPoolExecutor(n, mp_context=ctx, initializer=_init, initargs=(data,)) as ex:
+        # first the beam width's crops (its scan and then every sonar task wait for them)
+        futures = {ex.submit(_crop_task, cid, beam_detections): ("crop", cid) for cid in crop_ids}
+        futures.update({ex.submit(_task, (*t, None)): k for k, t in enumerate(todo) if k not in later})
+        done = 0
+        while futures:
+            finished, _ = wait(futures, return_when=FIRST_COMPLETED)
+            for f in finished:
+                k = futures.pop(f)
+                if isinstance(k, tuple):
+                    crops[k[1]] = f.result()
+                    if len(crops) == len(crop_ids):
+                        futures[ex.submit(_scan_task, [crops[c] for c in crop_ids])] = -1
+                    continue
+                if k == -1:
+                    data.beam_width_deg = f.result()
+                    beam = data.effective_beam_width_deg
+                    futures.update({ex.submit(_task, (*todo[j], beam)): j for j in later})
+                    continue
+                results[k] = f.result()
+                done += 1
+                if progress:
+                    progress(done, len(todo), f"{results[k][0]} {results[k][1]}")
+    return [_unwrap(*r) for r in results]

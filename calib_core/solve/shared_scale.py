@@ -1,0 +1,167 @@
+"""One sonar range scale shared by several cameras that see it through the sphere's diameter.
+
+Cameras without a stereo transform between them each observe the scale ``s`` only through the
+sphere's apparent size (image ranges, see :mod:`calib_core.solve.scale`). The scale is one
+parameter of the sonar, so it is estimated from all of them together:
+
+- each camera c is fitted with ranges, once with ``s`` free (``s_c``, statistical variance
+  ``V_c``, ``chi2_free_c``) and once with ``s = 1`` (``chi2_fixed_c``);
+- to first order the fit with one shared ``s`` is the weighted mean
+  ``s = sum(s_c / V_c) / sum(1 / V_c)``, with ``chi2_shared = sum chi2_free_c + sum (s_c - s)^2 / V_c``;
+- the stated test is the same likelihood-ratio F test as one camera's
+  (``F = (sum chi2_fixed_c - chi2_shared) / v`` with ``v = chi2_shared / dof``), deflated by the
+  diameter's tolerance, which is a systematic common to all cameras (every range is proportional
+  to the one assumed diameter), so it does not average down with more cameras;
+- sigma of ``s``: ``sqrt(v_+ / sum(1 / V_c) + (diameter_sigma / diameter)^2)`` with
+  ``v_+ = max(1, v)``;
+- the cameras' agreement is tested too (``b = sum (s_c - s)^2 / V_c / (n - 1)``, ``b / v ~ F(n-1, dof)``);
+  when they disagree at the same level, ``v`` is replaced by ``b`` in the test and the sigma
+  (the scatter between cameras is then the scale's noise level) and the note says so.
+
+When the scaled model is chosen every camera's pose is refitted with ranges at the shared ``s``;
+its covariance adds the uncertainty of ``s`` through the pose's correlation with it, and the
+diameter's systematic through a finite-difference rerun with every range lengthened.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from calib_core.solve.model import CameraData, RigState, log_so3
+from calib_core.solve.refine import RigProblem, refine
+from calib_core.solve.scale import SCALE_TEST_ALPHA, scale_observability
+
+
+@dataclass
+class CameraScaleFit:
+    """One camera's fits with ranges: free scale (value, statistical variance, pose-scale gain) and s = 1."""
+
+    name: str
+    cd: CameraData
+    used: np.ndarray
+    state: RigState
+    s: float
+    var: float
+    gain: np.ndarray  # d pose / d s at fixed data (cov_ps / cov_ss), rotation rad then translation m
+    chi2_free: float
+    dof_free: int
+    chi2_fixed: float
+
+
+@dataclass
+class SharedScale:
+    """Outcome of :func:`shared_scale`: value, 1-sigma, chosen?, test, per-camera values, new poses."""
+
+    value: float
+    sigma: float
+    estimated: bool
+    test: dict
+    per_camera: dict
+    poses: dict  # cam -> (T_cam_sonar, 6x6 covariance) at the shared scale (only when estimated)
+    note: str
+
+
+def _fit_camera(name: str, cd: CameraData, used: np.ndarray, T_cam_sonar: np.ndarray, robust) -> CameraScaleFit | None:
+    """Free-scale and s = 1 fits of one camera with ranges; None when it has no ranges or cannot see s."""
+    if not cd.has_ranges(used):
+        return None
+    state0 = RigState(T_cam_sonar, {name: np.eye(4)})
+    fixed = refine(RigProblem([cd], [used], use_ranges=True), state0, robust=robust)
+    prob = RigProblem([cd], [used], estimate_scale=True, use_ranges=True)
+    if not scale_observability(prob, fixed.state)[0]:
+        return None
+    free = refine(prob, fixed.state, robust=robust)
+    cov = free.cov
+    return CameraScaleFit(name, cd, used, free.state, free.state.scale, float(cov[-1, -1]), cov[:6, -1] / cov[-1, -1],
+                          free.chi2, int(free.dof), fixed.chi2)
+
+
+def _combine(fits: list[CameraScaleFit], rel_sigma: float) -> tuple[float, float, dict]:
+    """Weighted mean of the cameras' scales, its sigma and the F test of s = 1 (module doc)."""
+    from scipy.special import fdtrc
+
+    w = np.array([1.0 / f.var for f in fits])
+    s_i = np.array([f.s for f in fits])
+    s = float(np.sum(w * s_i) / np.sum(w))
+    var_stat = 1.0 / float(np.sum(w))
+    spread = float(np.sum(w * (s_i - s) ** 2))
+    chi2_shared = sum(f.chi2_free for f in fits) + spread
+    dof = sum(f.dof_free for f in fits) + len(fits) - 1
+    v = chi2_shared / dof if dof > 0 else math.nan
+    # cameras that disagree about s beyond their own noise (e.g. a bias of one camera's ranges):
+    # the scatter between them, not the fits' noise, is then the noise level of s (Birge ratio)
+    b = spread / (len(fits) - 1)
+    p_spread = float(fdtrc(len(fits) - 1, dof, b / v)) if v > 0 else 1.0
+    v_s = max(v, b) if p_spread < SCALE_TEST_ALPHA else v
+    d = max(sum(f.chi2_fixed for f in fits) - chi2_shared, 0.0)
+    F = d / v_s if v_s > 0 else math.inf
+    if rel_sigma > 0 and math.isfinite(F):
+        F *= v_s * var_stat / (v_s * var_stat + rel_sigma**2)
+    p = float(fdtrc(1.0, dof, F)) if dof > 0 and math.isfinite(F) else 0.0
+    sigma = math.sqrt(var_stat * max(1.0, v_s) + rel_sigma**2)
+    test = {"name": "likelihood-ratio F test of scale = 1", "F": F, "dof": [1, int(dof)], "p_value": p,
+            "level": SCALE_TEST_ALPHA, "scaled_model_chosen": p < SCALE_TEST_ALPHA,
+            "cameras_agree_p_value": p_spread, "cameras_agree": p_spread >= SCALE_TEST_ALPHA}
+    return s, sigma, test
+
+
+def _pose_at(f: CameraScaleFit, s: float, robust, range_factor: float = 1.0):
+    """Refit one camera with ranges (times ``range_factor``) at a fixed scale: (T_cam_sonar, 6x6 cov, vf)."""
+    cd = f.cd if range_factor == 1.0 else dataclasses.replace(f.cd, range_m=f.cd.range_m * range_factor)
+    st = RigState(f.state.T_ref_sonar, f.state.T_cam_ref, s)
+    res = refine(RigProblem([cd], [f.used], use_ranges=True), st, robust=robust)
+    vf = res.variance_factor if res.dof > 0 else 1.0
+    return res.state.T_ref_sonar, res.cov[:6, :6] * max(1.0, vf)
+
+
+def _pose_shift(T0: np.ndarray, T1: np.ndarray) -> np.ndarray:
+    return np.concatenate([log_so3(T1[:3, :3] @ T0[:3, :3].T), T1[:3, 3] - T0[:3, 3]])
+
+
+def _poses(fits, s, sigma, rel_sigma, robust, eps=1e-3) -> dict:
+    """Every camera's pose at the shared scale with the scale's and the diameter's uncertainty added."""
+    var_stat = max(sigma**2 - rel_sigma**2, 0.0)
+    fits_d = [_fit_camera(f.name, dataclasses.replace(f.cd, range_m=f.cd.range_m * (1 + eps)), f.used,
+                          f.state.T_ref_sonar, robust) for f in fits] if rel_sigma > 0 else []
+    s_d = _combine(fits_d, 0.0)[0] if fits_d and all(fits_d) else s
+    out = {}
+    for f in fits:
+        T, cov = _pose_at(f, s, robust)
+        cov = cov + np.outer(f.gain, f.gain) * var_stat
+        if rel_sigma > 0:
+            T_d, _ = _pose_at(f, s_d, robust, 1 + eps)
+            g = _pose_shift(T, T_d) / eps
+            cov = cov + np.outer(g, g) * rel_sigma**2
+        out[f.name] = (T, cov)
+    return out
+
+
+def shared_scale(cams: dict, mode: str, rel_sigma: float, robust: str | None = None) -> SharedScale | None:
+    """One range scale from several cameras' diameter evidence (module doc).
+
+    ``cams``: name -> (CameraData, used mask, T_cam_sonar of its s = 1 solve). ``mode``: "auto" or
+    "always" (see :func:`calib_core.solve.scale.scale_mode`). None when fewer than two cameras
+    carry ranges that see the scale (the one-camera route covers one)."""
+    fits = [f for f in (_fit_camera(n, cd, u, T, robust) for n, (cd, u, T) in cams.items()) if f is not None]
+    if len(fits) < 2:
+        return None
+    s, sigma, test = _combine(fits, rel_sigma)
+    per = {f.name: {"value": f.s, "sigma": math.sqrt(f.var)} for f in fits}
+    est = f"{s:.5f} ± {sigma:.5f}"
+    names = " + ".join(f.name for f in fits)
+    if not test["cameras_agree"]:
+        names += (" (they disagree: " + ", ".join(f"{f.name} {f.s:.4f}" for f in fits) +
+                  f"; F test p = {test['cameras_agree_p_value']:.2g}; the sigma is widened to their scatter: check each "
+                  f"camera's intrinsics and the sphere's apparent size)")
+    if mode == "always" or test["scaled_model_chosen"]:
+        why = "forced (--scale)" if not test["scaled_model_chosen"] else \
+            f"the data show a scale error (F test p = {test['p_value']:.2g} < {SCALE_TEST_ALPHA:g})"
+        return SharedScale(s, sigma, True, test, per, _poses(fits, s, sigma, rel_sigma, robust),
+                           f"estimated from {names} together: {why}")
+    return SharedScale(1.0, sigma, False, test, per, {},
+                       f"kept at 1: {names} together show no scale error (free estimate {est}, F test p = "
+                       f"{test['p_value']:.2g} >= {SCALE_TEST_ALPHA:g})")

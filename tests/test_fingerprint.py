@@ -1,0 +1,86 @@
+"""Fingerprints: reuse of auto detections, session beam width reuse, parallel = sequential.
+
+Entries are compared without their time stamps, fingerprints and timings (keys ending in _ms)."""
+
+from __future__ import annotations
+
+import os
+
+import pytest
+
+from calib_core import fingerprint as fpm
+from calib_core import pipeline
+from calib_core.detections import load_detections, save_detections
+from calib_core.pipeline import SessionData, detect_session
+from calib_core.session import load_session
+from calib_core.synth.generate import generate_session
+
+
+def test_fingerprint_follows_content_params_and_detector(tmp_path):
+    f = tmp_path / "a.png"
+    f.write_bytes(b"abc" * 100)
+    fp = fpm.fingerprint(tmp_path, [f], {"sensor": "image", "d": 0.2})
+    entry = {"status": "auto", "fingerprint": fp}
+    assert fp["files"]["a.png"].split()[0] == fpm.file_sha256(f)
+    assert fpm.matches(entry, tmp_path, [f], {"sensor": "image", "d": 0.2})
+    assert not fpm.matches(entry, tmp_path, [f], {"sensor": "image", "d": 0.21})
+    assert not fpm.matches(dict(entry, status="accepted"), tmp_path, [f], {"sensor": "image", "d": 0.2})
+    st = f.stat()
+    f.write_bytes(b"abd" * 100)  # same size; restore the time stamp: only strict mode can tell
+    os.utime(f, ns=(st.st_atime_ns, st.st_mtime_ns))
+    assert fpm.matches(entry, tmp_path, [f], {"sensor": "image", "d": 0.2})
+    assert not fpm.matches(entry, tmp_path, [f], {"sensor": "image", "d": 0.2}, strict=True)
+    f.write_bytes(b"abd" * 101)
+    assert not fpm.matches(entry, tmp_path, [f], {"sensor": "image", "d": 0.2})
+    f.unlink()
+    assert not fpm.matches(entry, tmp_path, [f], {"sensor": "image", "d": 0.2})
+
+
+def _strip(dets):
+    return {c: {s: {k: v for k, v in e.items() if k not in ("detected_at", "fingerprint") and not k.endswith("_ms")}
+                for s, e in d.items()}
+            for c, d in dets.items()}
+
+
+@pytest.fixture(scope="module")
+def small(tmp_path_factory):
+    root = generate_session(tmp_path_factory.mktemp("fp") / "s", "quick", seed=7, scale=0.3, pan_step_deg=1.5,
+                            n_captures=4)
+    session = load_session(root)
+    dets = detect_session(SessionData(session), {}, workers=1)
+    save_detections(session, dets)
+    return root, session, dets
+
+
+def test_calibrate_reuses_matching_entries_and_redetects_only_changed_ones(small, monkeypatch):
+    root, session, dets = small
+    ran = []
+    real = pipeline.detect_one
+    monkeypatch.setattr(pipeline, "detect_one", lambda data, cid, sensor: ran.append((cid, sensor)) or real(data, cid, sensor))
+    again = detect_session(SessionData(session), load_detections(session), workers=1)
+    assert ran == [] and again == dets
+    cap = session.captures[1]
+    cam = next(iter(cap.image_paths))
+    st = cap.image_paths[cam].stat()
+    os.utime(cap.image_paths[cam], ns=(st.st_atime_ns, st.st_mtime_ns + 10**9))  # touched: rehash, same content
+    assert detect_session(SessionData(session), load_detections(session), workers=1) == dets and ran == []
+    data = cap.image_paths[cam].read_bytes()
+    cap.image_paths[cam].write_bytes(data + b"\0")  # changed content (PNG readers ignore trailing bytes)
+    third = detect_session(SessionData(session), load_detections(session), workers=1)
+    assert ran == [(cap.id, cam)]
+    assert _strip(third) == _strip(dets)  # same pixels: the re-detection reproduces the entry
+    cap.image_paths[cam].write_bytes(data)
+
+
+def test_beam_width_is_adopted_so_redetection_reproduces_entries(small):
+    _, session, dets = small
+    fresh = detect_session(SessionData(session), load_detections(session), workers=1, reuse=False)
+    assert _strip(fresh) == _strip(dets)
+    widths = {e["beam_width_deg"] for d in fresh.values() for s, e in d.items() if s == "sonar"}
+    assert len(widths) == 1
+
+
+def test_parallel_detection_equals_sequential(small):
+    _, session, dets = small
+    par = detect_session(SessionData(session), {}, workers=2)
+    assert _strip(par) == _strip(dets)
