@@ -63,16 +63,21 @@ def outline_sigma_px(session) -> tuple[float, bool]:
     return float(v), False
 
 
-def range_rel_sigma(session, cd=None) -> float:
+def image_range_rel_sigma(diameter_m: float, diameter_sigma_m: float, outline_px: float, cd=None) -> float:
     """Relative systematic error of one camera's image ranges (sphere's apparent size): the
-    diameter tolerance and the outline's systematic error over the camera's median apparent
+    diameter tolerance and the outline's systematic error (px) over the camera's median apparent
     radius (px), in quadrature. Without ranges (``cd`` None or no range_m), the diameter alone."""
-    rel = diameter_sigma(session)[0] / session.sphere_diameter_m
-    rng = None if cd is None else cd.range_m
-    if rng is None or not np.isfinite(np.asarray(rng, float)).any():
+    rel = diameter_sigma_m / diameter_m
+    rng = None if cd is None or cd.range_m is None else np.asarray(cd.range_m, float)
+    if rng is None or not np.isfinite(rng).any():
         return rel
-    radius_px = cd.cam.fx * 0.5 * session.sphere_diameter_m / float(np.nanmedian(np.asarray(rng, float)))
-    return math.hypot(rel, outline_sigma_px(session)[0] / max(radius_px, 1e-6))
+    radius_px = cd.cam.fx * 0.5 * diameter_m / float(np.nanmedian(rng))
+    return math.hypot(rel, outline_px / max(radius_px, 1e-6))
+
+
+def range_rel_sigma(session, cd=None) -> float:
+    """:func:`image_range_rel_sigma` with the session's diameter, tolerance and outline error."""
+    return image_range_rel_sigma(session.sphere_diameter_m, diameter_sigma(session)[0], outline_sigma_px(session)[0], cd)
 
 
 def scale_mode(estimate_scale) -> str:
