@@ -12,7 +12,8 @@ A. Two cameras tied by the stereo transform (drawn from its assumed covariance, 
 B. Same, true scale 1.00: pose precision with no flag against held at 1 (target: within 2 %).
 C. One camera, true scale 1.02 and 1.00: image ranges from the sphere's apparent size with 0.3 %
    noise, all scaled by one diameter error drawn from N(0, 1 mm) on a 220 mm sphere (the
-   tolerance the tool assumes when session.yaml gives none). Coverage: share of trials with
+   tolerance the tool assumes when session.yaml gives none); the tool's stated systematic adds its
+   default 1 px outline error over the apparent radius. Coverage: share of trials with
    |s - s_true| <= 3 sigma (the sigma includes the diameter tolerance); RMS of (s - s_true)/sigma.
 D. Two cameras, no stereo transform (calib_core.solve.shared_scale): both cameras' ranges as in C
    with one diameter error common to both; one shared scale, pose error of cam1 against held at 1.
@@ -35,6 +36,7 @@ from calib_core.solve.model import camera_data, exp_so3  # noqa: E402
 from calib_core.solve.refine import Link  # noqa: E402
 from calib_core.solve.rig import solve_rig  # noqa: E402
 from calib_core.solve.simulate import synthetic_rig  # noqa: E402
+from calib_core.solve.scale import DEFAULT_OUTLINE_SIGMA_PX, image_range_rel_sigma  # noqa: E402
 from calib_core.solve.shared_scale import shared_scale  # noqa: E402
 from calib_core.solve.single import solve_camera  # noqa: E402
 
@@ -81,13 +83,20 @@ def ranges(rig, rng, cam="cam1", k=None):
     return k * true + rng.normal(0, 1, len(true)) * sig, sig
 
 
+def rel_sigma(cd):
+    """The systematic the tool states for image ranges (calibrate_session's default): the diameter
+    tolerance and a 1 px outline error over the apparent radius. The simulated ranges carry only
+    the diameter error, so coverage stays honest; the outline term costs estimates."""
+    return image_range_rel_sigma(DIAMETER_M, DIAMETER_SIGMA_M, DEFAULT_OUTLINE_SIGMA_PX, cd)
+
+
 def one_camera(trials, n, scale):
     rows = []
     for k in range(trials):
         rig = synthetic_rig(40_000 + k, n_captures=n, scale=scale, depth_m=(0.8, 3.0))
         rng = np.random.default_rng(k)
         cd = cdata(rig, "cam1", ranges(rig, rng))
-        auto = solve_camera(cd, loo=False, diameter_rel_sigma=DIAMETER_SIGMA_M / DIAMETER_M)
+        auto = solve_camera(cd, loo=False, diameter_rel_sigma=rel_sigma(cd))
         held = solve_camera(cd, loo=False, estimate_scale=False)
         e_a = pose_error(auto.T_cam_sonar, rig.T_cam_sonar["cam1"])
         e_h = pose_error(held.T_cam_sonar, rig.T_cam_sonar["cam1"])
@@ -104,8 +113,8 @@ def no_stereo(trials, n, scale):
         kd = 1.0 + rng.normal(0, DIAMETER_SIGMA_M) / DIAMETER_M
         sols = {c: solve_camera(cdata(rig, c, ranges(rig, rng, c, kd)), estimate_scale=False, loo=False)
                 for c in ("cam1", "cam2")}
-        sh = shared_scale({c: (v.data, v.used, v.T_cam_sonar) for c, v in sols.items()}, "auto",
-                          DIAMETER_SIGMA_M / DIAMETER_M)
+        rel = float(np.sqrt(np.mean([rel_sigma(v.data) ** 2 for v in sols.values()])))
+        sh = shared_scale({c: (v.data, v.used, v.T_cam_sonar) for c, v in sols.items()}, "auto", rel)
         T = sh.poses["cam1"][0] if sh.estimated else sols["cam1"].T_cam_sonar
         e_a = pose_error(T, rig.T_cam_sonar["cam1"])
         e_h = pose_error(sols["cam1"].T_cam_sonar, rig.T_cam_sonar["cam1"])

@@ -18,12 +18,20 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import numpy as np
+
 from calib_core.solve.refine import RigProblem, RefineResult, covariance_from_jacobian, jacobian, refine, weights_for
 
 SCALE_TEST_ALPHA = 0.001
 # Tolerance of the sphere's diameter when session.yaml gives no sphere.diameter_sigma: 1 mm
 # (a float or ball measured with calipers or a tape to about a millimetre).
 DEFAULT_DIAMETER_SIGMA_M = 0.001
+# Systematic error of an outline's apparent radius on real photographs when session.yaml gives no
+# sphere.outline_sigma_px: blur through the camera's gamma curve, JPEG and limb shading move a
+# sphere's outline by about a pixel, the same way on every capture of a camera. Image ranges
+# (radius / sin(angular radius)) inherit it as a relative error of sigma_px / apparent radius, a
+# systematic that does not average down over captures, so it enters like the diameter tolerance.
+DEFAULT_OUTLINE_SIGMA_PX = 1.0
 MAX_SCALE_SIGMA = 0.01  # a range scale known worse than 1 % is not worth estimating
 MODES = ("auto", "always", "never")
 
@@ -40,6 +48,36 @@ def diameter_sigma(session) -> tuple[float, bool]:
         raise SessionError(session.manifest_path, f"sphere.diameter_sigma must be a tolerance in metres "
                                                   f"(0 to half the diameter), got {v!r}")
     return float(v), False
+
+
+def outline_sigma_px(session) -> tuple[float, bool]:
+    """(sphere.outline_sigma_px, assumed?) from session.yaml, else the default (see above)."""
+    from calib_core.errors import SessionError
+
+    v = ((session.raw or {}).get("sphere") or {}).get("outline_sigma_px")
+    if v is None:
+        return DEFAULT_OUTLINE_SIGMA_PX, True
+    if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or not 0 <= v <= 100:
+        raise SessionError(session.manifest_path, f"sphere.outline_sigma_px must be a systematic outline error in "
+                                                  f"pixels (0 to 100), got {v!r}")
+    return float(v), False
+
+
+def image_range_rel_sigma(diameter_m: float, diameter_sigma_m: float, outline_px: float, cd=None) -> float:
+    """Relative systematic error of one camera's image ranges (sphere's apparent size): the
+    diameter tolerance and the outline's systematic error (px) over the camera's median apparent
+    radius (px), in quadrature. Without ranges (``cd`` None or no range_m), the diameter alone."""
+    rel = diameter_sigma_m / diameter_m
+    rng = None if cd is None or cd.range_m is None else np.asarray(cd.range_m, float)
+    if rng is None or not np.isfinite(rng).any():
+        return rel
+    radius_px = cd.cam.fx * 0.5 * diameter_m / float(np.nanmedian(rng))
+    return math.hypot(rel, outline_px / max(radius_px, 1e-6))
+
+
+def range_rel_sigma(session, cd=None) -> float:
+    """:func:`image_range_rel_sigma` with the session's diameter, tolerance and outline error."""
+    return image_range_rel_sigma(session.sphere_diameter_m, diameter_sigma(session)[0], outline_sigma_px(session)[0], cd)
 
 
 def scale_mode(estimate_scale) -> str:
@@ -98,8 +136,11 @@ def lr_test(res_fixed: RefineResult, res_free: RefineResult, systematic_var: flo
         stat = v * max(res_free.cov[-1, -1], 0.0)
         F *= stat / (stat + systematic_var)
     p = float(fdtrc(1.0, res_free.dof, F)) if res_free.dof > 0 and math.isfinite(F) else 0.0
+    # a scale known worse than MAX_SCALE_SIGMA (its systematics included) is not applied on its own
+    sigma = math.sqrt(max(v, 1.0) * max(res_free.cov[-1, -1], 0.0) + systematic_var) if math.isfinite(v) else math.inf
     return {"name": "likelihood-ratio F test of scale = 1", "F": F, "dof": [1, int(res_free.dof)], "p_value": p,
-            "level": SCALE_TEST_ALPHA, "scaled_model_chosen": p < SCALE_TEST_ALPHA}
+            "level": SCALE_TEST_ALPHA, "max_sigma": MAX_SCALE_SIGMA,
+            "scaled_model_chosen": p < SCALE_TEST_ALPHA and sigma <= MAX_SCALE_SIGMA}
 
 
 def choose_scale(prob_fixed: RigProblem, res_fixed: RefineResult, prob_free: RigProblem, mode: str,
@@ -118,6 +159,11 @@ def choose_scale(prob_fixed: RigProblem, res_fixed: RefineResult, prob_free: Rig
         why = "forced (--scale)" if mode == "always" and not test["scaled_model_chosen"] else \
             f"the data show a scale error (F test p = {test['p_value']:.2g} < {SCALE_TEST_ALPHA:g})"
         return ScaleChoice(res_free, prob_free, True, True, f"estimated: {why}", test)
+    if test["p_value"] < SCALE_TEST_ALPHA:  # a deviation, but known too poorly to apply
+        return ScaleChoice(res_fixed, prob_fixed, False, True,
+                           f"kept at 1: the data put it at {est} (F test p = {test['p_value']:.2g}), but only to "
+                           f"±{100 * sig:.1f} %, worse than the {100 * MAX_SCALE_SIGMA:g} % worth applying "
+                           f"(--scale applies it)", test)
     return ScaleChoice(res_fixed, prob_fixed, False, True,
                        f"kept at 1: the data show no scale error (free estimate {est}, F test p = "
                        f"{test['p_value']:.2g} >= {SCALE_TEST_ALPHA:g})", test)

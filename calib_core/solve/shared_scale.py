@@ -33,7 +33,7 @@ import numpy as np
 
 from calib_core.solve.model import CameraData, RigState, log_so3
 from calib_core.solve.refine import RigProblem, refine
-from calib_core.solve.scale import SCALE_TEST_ALPHA, scale_observability
+from calib_core.solve.scale import MAX_SCALE_SIGMA, SCALE_TEST_ALPHA, scale_observability
 
 
 @dataclass
@@ -104,7 +104,8 @@ def _combine(fits: list[CameraScaleFit], rel_sigma: float) -> tuple[float, float
     p = float(fdtrc(1.0, dof, F)) if dof > 0 and math.isfinite(F) else 0.0
     sigma = math.sqrt(var_stat * max(1.0, v_s) + rel_sigma**2)
     test = {"name": "likelihood-ratio F test of scale = 1", "F": F, "dof": [1, int(dof)], "p_value": p,
-            "level": SCALE_TEST_ALPHA, "scaled_model_chosen": p < SCALE_TEST_ALPHA,
+            "level": SCALE_TEST_ALPHA, "max_sigma": MAX_SCALE_SIGMA,
+            "scaled_model_chosen": p < SCALE_TEST_ALPHA and sigma <= MAX_SCALE_SIGMA,
             "cameras_agree_p_value": p_spread, "cameras_agree": p_spread >= SCALE_TEST_ALPHA}
     return s, sigma, test
 
@@ -162,6 +163,11 @@ def shared_scale(cams: dict, mode: str, rel_sigma: float, robust: str | None = N
             f"the data show a scale error (F test p = {test['p_value']:.2g} < {SCALE_TEST_ALPHA:g})"
         return SharedScale(s, sigma, True, test, per, _poses(fits, s, sigma, rel_sigma, robust),
                            f"estimated from {names} together: {why}")
+    if test["p_value"] < SCALE_TEST_ALPHA:  # a deviation, but known too poorly to apply
+        return SharedScale(1.0, sigma, False, test, per, {},
+                           f"kept at 1: {names} together put it at {est} (F test p = {test['p_value']:.2g}), but "
+                           f"the sphere's apparent size gives the scale only to ±{100 * sigma:.1f} %, worse than the "
+                           f"{100 * MAX_SCALE_SIGMA:g} % worth applying (--scale applies it)")
     return SharedScale(1.0, sigma, False, test, per, {},
                        f"kept at 1: {names} together show no scale error (free estimate {est}, F test p = "
                        f"{test['p_value']:.2g} >= {SCALE_TEST_ALPHA:g})")
