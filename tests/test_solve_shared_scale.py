@@ -68,3 +68,26 @@ def test_no_scale_error_follows_the_stated_test(seed):
 def test_needs_two_cameras_with_ranges():
     rig = synthetic_rig(64, n_captures=10, scale=1.02, depth_m=(0.8, 3.0))
     assert shared_scale(_cams(rig, with_ranges=("cam1",)), "auto", REL) is None
+
+
+def test_a_scale_known_worse_than_one_percent_is_reported_not_applied():
+    """A 6 % scale error seen through image ranges with a 1.5 % systematic (e.g. a 1 px outline
+    error on a 67 px sphere): significant, but too poorly known to apply by default; --scale
+    ("always") still applies it."""
+    from calib_core.solve.scale import MAX_SCALE_SIGMA, image_range_rel_sigma
+
+    rig = synthetic_rig(61, n_captures=12, scale=1.06, sigma_px=0.3, sigma_m=0.003, depth_m=(0.8, 3.0))
+    cams = _cams(rig)
+    auto = shared_scale(cams, "auto", 0.015)
+    assert auto.test["p_value"] < SCALE_TEST_ALPHA  # the deviation is significant ...
+    assert not auto.estimated and auto.value == 1.0 and auto.sigma > MAX_SCALE_SIGMA  # ... but not applied
+    assert "worse than the 1 %" in auto.note and "--scale" in auto.note
+    assert shared_scale(cams, "auto", REL).estimated  # known to 1 %: applied
+    forced = shared_scale(cams, "always", 0.015)
+    assert forced.estimated and abs(forced.value - 1.06) < 3 * forced.sigma
+    # the systematic the tool states: the diameter tolerance and the outline error over the radius
+    cd = cams["cam1"][0]
+    r_px = cd.cam.fx * 0.11 / float(np.median(cd.range_m))
+    assert image_range_rel_sigma(0.22, 0.001, 0.0, cd) == pytest.approx(REL)
+    assert image_range_rel_sigma(0.22, 0.001, 1.0, cd) == pytest.approx(math.hypot(REL, 1.0 / r_px))
+    assert image_range_rel_sigma(0.22, 0.001, 1.0, None) == pytest.approx(REL)
