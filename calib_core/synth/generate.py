@@ -22,13 +22,15 @@ from calib_core.synth import range_scenes, room, world
 from calib_core.synth.camera_render import RenderOptions, finish_image, render_radiance
 from calib_core.synth.drift import drift_positions, write_drift_frames
 from calib_core.synth.ground_truth import GT_FILE, GT_FORMAT, to_list
+from calib_core.synth.occlusion import MAX_OCCLUDED_FRACTION, occluded_fraction
 from calib_core.synth.presets import get_preset
 from calib_core.synth.range_capture import in_field, sensor_config, simulate_range
 from calib_core.synth.rig import sample_rig, sample_target_center, silhouette_uv, sphere_in_image
-from calib_core.synth.scene import Scene, raycast
+from calib_core.synth.scene import Scene
 from calib_core.synth.sonar_sim import SonarConfig, simulate_scan
 
 SOUND_SPEED = 1481.0
+HOLDER_TRIES = 4000  # holder presets: far fewer draws pass the occlusion test
 VIDEO_FPS = 5
 
 
@@ -95,7 +97,12 @@ def generate_session(out_dir, preset, seed: int, progress=None, **overrides) -> 
     corner_idx = set(r_rig.choice(P.n_captures, n_corner, replace=False).tolist())
     for i in range(P.n_captures):
         ref = cams[i % len(cams)]
-        c, _ = sample_target_center(r_rig, rig, radius, ref, i in corner_idx, ok_extra)
+        if P.holder:  # the holder (slab, table, chair, person) must not hide the sphere
+            base_z = floor_z if floor_z is not None else seabed_z
+            seen = _HolderCheck(P, seed, i, rig, radius, base_z, ok_extra)
+            c, _ = sample_target_center(r_rig, rig, radius, ref, i in corner_idx, seen, tries=HOLDER_TRIES)
+        else:
+            c, _ = sample_target_center(r_rig, rig, radius, ref, i in corner_idx, ok_extra)
         centers.append(c)
     moved_idx = int(r_rig.integers(P.n_captures)) if P.moved else -1
     image_centers = [c.copy() for c in centers]
@@ -242,6 +249,27 @@ def generate_session(out_dir, preset, seed: int, progress=None, **overrides) -> 
     return out
 
 
+class _HolderCheck:
+    """Placement test for presets whose sphere rests on (or is held by) something: the
+    preset's own checks, then the sphere, with the very holder capture ``k`` will get (same
+    random stream), hidden by at most MAX_OCCLUDED_FRACTION from every camera."""
+
+    def __init__(self, P, seed, k, rig, radius, base_z, ok_extra):
+        self.P, self.seed, self.k, self.rig = P, seed, k, rig
+        self.radius, self.base_z, self.ok_extra = radius, base_z, ok_extra
+
+    def __call__(self, c) -> bool:
+        if not self.ok_extra(c):
+            return False
+        r_cap = np.random.default_rng([int(self.seed), 7919, 1000 + self.k])  # as in the capture loop
+        ball = range_scenes.solid_ball(c, self.radius, self.P.bright)
+        parts = range_scenes.holder_parts(r_cap, self.P.holder, c, self.radius, self.base_z,
+                                          self.rig.T_world_sonar[:3, 3])
+        scene = Scene((ball, *parts))
+        return all(occluded_fraction(scene, 0, T_wc, c, self.radius) < MAX_OCCLUDED_FRACTION
+                   for _, T_wc in self.rig.cams.values())
+
+
 def _sonar_block(sensor: str, cfg) -> dict:
     """session.yaml's range-sensor block. Only the sonar states a beam width: for the others
     the detector has to find out that there is (almost) none."""
@@ -267,30 +295,11 @@ def _capture_truth(rig, img_scene, radius, c_scan_world, c_img_world) -> dict:
         uv = cam.project(C[None])[0] if C[2] > 0 else None
         sil = silhouette_uv(cam, C, radius)
         in_img = bool(np.isfinite(sil).all() and cam.in_image(sil).all())
-        # occlusion: rays from the camera to points just inside the outline and the centre
-        ring = C[None] + 0.9 * (_ring_points(C, radius) - C[None])
-        pts_w = transform_points(T_wc, np.vstack([C[None], ring]))
-        d = pts_w - T_wc[:3, 3]
-        dist = np.linalg.norm(d, axis=1)
-        _, hit, _ = raycast(img_scene, T_wc[:3, 3], d / dist[:, None], acoustic=True)
-        occl = float(np.mean(hit != tid))
+        occl = occluded_fraction(img_scene, tid, T_wc, c_img_world, radius)
         ent["images"][name] = {"center_uv_px": to_list(uv), "visible": bool(in_img and occl <= 0.25),
                                "in_image": in_img, "occluded_fraction": round(occl, 4),
                                "distance_m": float(np.linalg.norm(C))}
     return ent
-
-
-def _ring_points(C, radius, n=36):
-    """Points on the sphere's outline circle (tangent points seen from the camera origin)."""
-    dist = np.linalg.norm(C)
-    w = C / dist
-    e1 = np.cross(w, [0, 1.0, 0])
-    e1 /= np.linalg.norm(e1)
-    e2 = np.cross(w, e1)
-    a = np.arcsin(radius / dist)
-    phi = np.linspace(0, 2 * np.pi, n, endpoint=False)
-    tang = (np.cos(phi)[:, None] * e1 + np.sin(phi)[:, None] * e2)
-    return C[None] - w[None] * radius * np.sin(a) + tang * radius * np.cos(a)
 
 
 def _save_video(path: Path, frames_rgb: list) -> None:
