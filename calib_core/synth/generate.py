@@ -25,12 +25,12 @@ from calib_core.synth.ground_truth import GT_FILE, GT_FORMAT, to_list
 from calib_core.synth.occlusion import MAX_OCCLUDED_FRACTION, occluded_fraction
 from calib_core.synth.presets import get_preset
 from calib_core.synth.range_capture import in_field, sensor_config, simulate_range
-from calib_core.synth.rig import sample_rig, sample_target_center, silhouette_uv, sphere_in_image
+from calib_core.synth.rig import sample_in_sensor_view, sample_rig, sample_target_center, silhouette_uv, sphere_in_image
 from calib_core.synth.scene import Scene
 from calib_core.synth.sonar_sim import SonarConfig, simulate_scan
 
 SOUND_SPEED = 1481.0
-HOLDER_TRIES = 4000  # holder presets: far fewer draws pass the occlusion test
+HOLDER_TRIES = 1000  # aimed at a camera pixel; then drawn in the range sensor's view
 VIDEO_FPS = 5
 
 
@@ -100,7 +100,12 @@ def generate_session(out_dir, preset, seed: int, progress=None, **overrides) -> 
         if P.holder:  # the holder (slab, table, chair, person) must not hide the sphere
             base_z = floor_z if floor_z is not None else seabed_z
             seen = _HolderCheck(P, seed, i, rig, radius, base_z, ok_extra)
-            c, _ = sample_target_center(r_rig, rig, radius, ref, i in corner_idx, seen, tries=HOLDER_TRIES)
+            zr = _holder_heights(P.holder, rig, radius, base_z)
+            try:
+                c, _ = sample_target_center(r_rig, rig, radius, ref, i in corner_idx, seen, tries=HOLDER_TRIES,
+                                            z_range=zr)
+            except RuntimeError:  # a narrow sensor field: draw in the sensor's view instead
+                c = sample_in_sensor_view(r_rig, rig, radius, seen, zr)
         else:
             c, _ = sample_target_center(r_rig, rig, radius, ref, i in corner_idx, ok_extra)
         centers.append(c)
@@ -247,6 +252,16 @@ def generate_session(out_dir, preset, seed: int, progress=None, **overrides) -> 
     atomic_write_yaml(out / GT_FILE, gt)
     atomic_write_yaml(out / "session.yaml", session)
     return out
+
+
+def _holder_heights(holder: str, rig, radius: float, base_z: float) -> tuple:
+    """World heights (m) for the centre of a sphere on a holder: clear of the floor or seabed
+    and, on a seat, table or slab, with the sphere's bottom below every camera (a camera
+    under the top of what the sphere rests on sees the top hide it)."""
+    lo = base_z + (0.5 if holder == "stick" else 0.3) + radius
+    if holder == "stick":
+        return lo, np.inf
+    return lo, min(T[2, 3] for _, T in rig.cams.values()) - 0.05 + radius
 
 
 class _HolderCheck:

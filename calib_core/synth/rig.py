@@ -150,10 +150,12 @@ def in_sonar_field(T_world_sonar, center_world_m, radius_m, pan_span_deg=90.0, f
 
 
 def sample_target_center(rng, rig: Rig, radius_m: float, ref_cam: str, corner: bool,
-                         ok_extra=lambda c: True, dist_range=(1.0, 4.0), tries: int = 400):
+                         ok_extra=lambda c: True, dist_range=(1.0, 4.0), tries: int = 400, z_range=None):
     """A world-frame sphere centre aimed at a random pixel of ``ref_cam`` (near a corner if
     asked), 1-4 m away, fully inside every camera's image when possible and inside the
-    sonar's scanned volume. Returns (center_world_m, visible_in_all_cameras)."""
+    sonar's scanned volume. ``z_range`` (world z of the centre, metres), if given, limits the
+    distance drawn along the pixel's ray to where the centre's height lies in that range.
+    Returns (center_world_m, visible_in_all_cameras)."""
     cam, T_wc = rig.cams[ref_cam]
     W, H = cam.width_px, cam.height_px
     fallback = None
@@ -164,7 +166,10 @@ def sample_target_center(rng, rig: Rig, radius_m: float, ref_cam: str, corner: b
         else:
             u, v = rng.uniform(0.12, 0.88) * W, rng.uniform(0.12, 0.88) * H
         ray = camera_rays(cam, np.array([[u, v]]))[0]
-        d = rng.uniform(*dist_range)
+        lo, hi = dist_range if z_range is None else _dist_for_height(T_wc, ray, dist_range, z_range)
+        if lo > hi:
+            continue
+        d = rng.uniform(lo, hi)
         c_world = transform_points(T_wc, (d * ray)[None])[0]
         if not in_sonar_field(rig.T_world_sonar, c_world, radius_m) or not ok_extra(c_world):
             continue
@@ -178,5 +183,38 @@ def sample_target_center(rng, rig: Rig, radius_m: float, ref_cam: str, corner: b
         if corner and i > tries // 2:
             corner = False  # corners of one camera may be outside the other: relax
     if fallback is None:
-        raise RuntimeError("could not place the target in view of the sonar and the camera")
+        raise RuntimeError(f"could not place the target in view of the sonar and the camera in {tries} tries")
     return fallback, False
+
+
+def _dist_for_height(T_world_cam, ray_cam, dist_range, z_range):
+    """The distances along a camera ray (within ``dist_range``) whose world point has its
+    height in ``z_range``; an empty interval has lo > hi."""
+    z0 = T_world_cam[2, 3]
+    dz = float((T_world_cam[:3, :3] @ ray_cam)[2])
+    lo, hi = dist_range
+    if abs(dz) < 1e-9:
+        return (lo, hi) if z_range[0] <= z0 <= z_range[1] else (1.0, 0.0)
+    a, b = sorted(((z_range[0] - z0) / dz, (z_range[1] - z0) / dz))
+    return max(lo, a), min(hi, b)
+
+
+def sample_in_sensor_view(rng, rig: Rig, radius_m: float, ok_extra, z_range, dist_range=(1.0, 4.5),
+                          tries: int = 20000):
+    """A world-frame sphere centre drawn in the range sensor's view (azimuth and elevation
+    within +-45 deg, ``dist_range`` away, centre height in ``z_range``) that passes ``ok_extra``,
+    is fully inside every camera's image and not too close to any camera. For rigs where
+    aiming at a camera pixel rarely lands in the sensor's (narrow) field.
+    Raises RuntimeError after ``tries`` draws."""
+    R, t = rig.T_world_sonar[:3, :3], rig.T_world_sonar[:3, 3]
+    for _ in range(tries):
+        az, el = np.deg2rad(rng.uniform(-45, 45, 2))
+        d = rng.uniform(*dist_range)
+        c = t + R @ (d * np.array([np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), np.sin(el)]))
+        if not z_range[0] <= c[2] <= z_range[1] or not in_sonar_field(rig.T_world_sonar, c, radius_m):
+            continue
+        if any(np.linalg.norm(c - T[:3, 3]) < max(0.9, 8 * radius_m) for _, T in rig.cams.values()):
+            continue
+        if all(sphere_in_image(m, invert_T(T), c, radius_m, 2.0) for m, T in rig.cams.values()) and ok_extra(c):
+            return c
+    raise RuntimeError(f"could not place the target in view of the range sensor and the camera in {tries} tries")
