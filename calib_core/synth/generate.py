@@ -256,10 +256,11 @@ def generate_session(out_dir, preset, seed: int, progress=None, **overrides) -> 
 
 def _holder_heights(holder: str, rig, radius: float, base_z: float) -> tuple:
     """World heights (m) for the centre of a sphere on a holder: clear of the floor or seabed
-    and, on a seat, table or slab, with the sphere's bottom below every camera (a camera
-    under the top of what the sphere rests on sees the top hide it)."""
+    and, on a table or slab, with the sphere's bottom below every camera (a camera under
+    the top of what the sphere rests on sees the top hide it; a chair's seat is narrower
+    than the ball, so the occlusion test alone decides there)."""
     lo = base_z + (0.5 if holder == "stick" else 0.3) + radius
-    if holder == "stick":
+    if holder in ("stick", "chair"):
         return lo, np.inf
     return lo, min(T[2, 3] for _, T in rig.cams.values()) - 0.05 + radius
 
