@@ -199,7 +199,7 @@ def _dist_for_height(T_world_cam, ray_cam, dist_range, z_range):
     return max(lo, a), min(hi, b)
 
 
-def sample_in_sensor_view(rng, rig: Rig, radius_m: float, ok_extra, z_range, dist_range=(1.0, 6.0),
+def sample_in_sensor_view(rng, rig: Rig, radius_m: float, ok_extra, z_range, dist_range=(1.0, 4.5),
                           tries: int = 20000):
     """A world-frame sphere centre drawn in the range sensor's view (azimuth and elevation
     within +-45 deg, ``dist_range`` away, centre height in ``z_range``) that passes ``ok_extra``,
