@@ -338,7 +338,8 @@ def _restarts(Xq, R, D, start, r, h):
     sn = float(np.linalg.norm(start))
     disc = angle_to_axis_rad(D, start / sn) <= np.arcsin(min(r / sn, 1.0)) + h
     if disc.sum() >= MIN_INLIERS:
-        yield fit_sphere(Xq[disc], start, r, model="cone", half_angle_rad=h, sigma0_m=0.01, n_rounds=2)
+        yield fit_sphere(Xq[disc], start, r, model="cone", half_angle_rad=h, sigma0_m=0.01,
+                         n_rounds=2, loss="cauchy")
 
 
 def _as_other_size(X, R, D, look: _FirstLook, fit: FitResult, r, h, seeded, noise_m):
