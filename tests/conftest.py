@@ -181,3 +181,29 @@ def run_cli(argv: list[str]) -> int:
 
 
 VENV_SONARCAL = Path(__file__).resolve().parents[1] / ".venv" / "bin" / "sonarcal"
+
+
+def review_session_with_decoy_taken(root) -> tuple:
+    """Detections of a `review` preset session in which the capture with the look-alike decoy
+    keeps what the image detector says on its own (it takes the fully visible decoy), as a
+    session without the sonar's second look would; saved to detections.yaml with its
+    fingerprint, so `calibrate`, `detect` and the workbench reuse it.
+
+    The session flow (:func:`calib_core.pipeline.detect_session`) now finds the half-hidden
+    target itself through the sonar's prediction, so the wrong detection the review tools must
+    diagnose has to be put back. Returns (SessionData, detections, ground truth)."""
+    from calib_core.detections import save_detections
+    from calib_core.pipeline import SessionData, detect_image_entry, detect_session
+    from calib_core.session import load_session
+
+    data = SessionData(load_session(root))
+    gt = yaml.safe_load((Path(root) / "ground_truth.yaml").read_text())
+    dets = detect_session(data, {})
+    hidden = next(c for c, v in gt["captures"].items() if v["images"]["cam1"].get("occluded_fraction", 0) > 0.3)
+    raw = detect_image_entry(data, hidden, "cam1")
+    true_uv = gt["captures"][hidden]["images"]["cam1"]["center_uv_px"]
+    assert raw.get("center") is not None and np.hypot(*np.subtract(raw["center"], true_uv)) > 20, \
+        "the image detector alone no longer takes the decoy: the review scenario needs another wrong detection"
+    dets[hidden]["cam1"] = raw
+    save_detections(data.session, dets)
+    return data, dets, gt

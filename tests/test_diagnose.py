@@ -17,15 +17,13 @@ from calib_core.session import load_session
 
 @pytest.fixture(scope="module")
 def review(tmp_path_factory):
+    from conftest import review_session_with_decoy_taken
+
     from calib_core.synth.generate import generate_session
 
     root = generate_session(tmp_path_factory.mktemp("diag") / "review", "review", 11, scale=0.25,
                             pan_step_deg=1.0, sub_rays=7)
-    data = SessionData(load_session(root))
-    gt = yaml.safe_load((root / "ground_truth.yaml").read_text())
-    dets = detect_session(data, {})
-    save_detections(data.session, dets)
-    return data, dets, gt
+    return review_session_with_decoy_taken(root)
 
 
 def _truth(gt):

@@ -157,7 +157,8 @@ def _split(model: str, res: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]
 
 def fit_sphere(points_m: np.ndarray, center0_m, radius_m: float, model: str = "cone",
                free_radius: bool = False, half_angle_rad: float = 0.0,
-               sigma0_m: float = 0.01, n_rounds: int = 3, warm: bool = False) -> FitResult:
+               sigma0_m: float = 0.01, n_rounds: int = 3, warm: bool = False,
+               loss: str = "soft_l1") -> FitResult:
     """Robust sphere fit to sonar points (sonar frame, metres).
 
     model: "cone" (beam-cone first-return model, see module docs) or "euclid" (distance to
@@ -169,6 +170,8 @@ def fit_sphere(points_m: np.ndarray, center0_m, radius_m: float, model: str = "c
     ``sigma^2 (J^T J)^-1`` over the inliers.
     warm: the start is already good (e.g. a fit on a subset): skip the soft-L1 round and take
     the points within 3 ``sigma0_m`` of the start as the first inliers.
+    loss: of the first round ("cauchy" rejects a large minority of outliers, such as the face
+    of a block under the ball, more firmly than "soft_l1").
     """
     P = np.asarray(points_m, float).reshape(-1, 3)
     n = len(P)
@@ -194,7 +197,7 @@ def fit_sphere(points_m: np.ndarray, center0_m, radius_m: float, model: str = "c
             first = 0
     for k in range(first, n_rounds):
         if k == 0:
-            sol = least_squares(f_all, x, jac=j_all, loss="soft_l1", f_scale=sigma,
+            sol = least_squares(f_all, x, jac=j_all, loss=loss, f_scale=sigma,
                                 x_scale=0.05, xtol=1e-6, ftol=1e-6, max_nfev=20)
         else:
             fs, js = _resid_fn(model, P[inl], R[inl], D[inl], half_angle_rad, radius_m)

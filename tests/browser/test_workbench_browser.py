@@ -65,6 +65,32 @@ def browser(tmp_path_factory):
         pytest.skip(str(e))
 
 
+def _camera_settled(client, quiet_s: float = 0.6, timeout: float = 20.0) -> None:
+    """Wait until the page's 3D camera has stopped moving (a framing animation, a slow page)."""
+    end, last, since = time.monotonic() + timeout, None, time.monotonic()
+    while time.monotonic() < end:
+        pos = np.r_[client.camera.position, client.camera.wxyz]
+        if last is None or np.abs(pos - last).max() > 1e-6:
+            last, since = pos, time.monotonic()
+        elif time.monotonic() - since >= quiet_s:
+            return
+        time.sleep(0.05)
+
+
+def _click_when_settled(page, client, X_world, done, what: str, tries: int = 3) -> None:
+    """Click where world point ``X_world`` is on screen once the view is still; on a loaded
+    machine the first click can land while the view still moves, so click again (up to ``tries``)."""
+    for k in range(tries):
+        _camera_settled(client)
+        page.mouse.click(*screen_of(client, canvas_box(page), X_world))
+        try:
+            wait_for(done, 10 if k < tries - 1 else 30, what)
+            return
+        except AssertionError:
+            if k == tries - 1:
+                raise
+
+
 def click_pixel(page, wb, client, cam: str, uv) -> None:
     """Click where raw pixel ``uv`` of camera ``cam``'s board appears after 'View through cam'."""
     model = wb.state.camera(cam)
@@ -130,8 +156,8 @@ def test_operator_session_in_chromium(workbench, browser, session_root):
     page.get_by_text("Correct the sonar centre").click()
     page.get_by_role("button", name="Pick sonar centre in 3D").click()
     wait_for(lambda: client.client_id in wb.review.picking, 20, "pick mode")
-    page.mouse.click(*screen_of(client, canvas_box(page), X))
-    wait_for(lambda: disk_detections(session_root)["p05"]["sonar"]["status"] == "corrected", 30, "p05 sonar picked")
+    _click_when_settled(page, client, X, lambda: disk_detections(session_root)["p05"]["sonar"]["status"] == "corrected",
+                        "p05 sonar picked")
     e5 = disk_detections(session_root)["p05"]["sonar"]
     assert e5["history"][-1]["action"] == "pick" and e5.get("refit") is True
     assert np.linalg.norm(np.asarray(e5["center"]) - X) < 0.03  # refit onto the same sphere

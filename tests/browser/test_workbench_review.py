@@ -40,8 +40,11 @@ def review_wb(tmp_path_factory):
     from app.server import Workbench
     from calib_core.synth.generate import generate_session
 
+    from conftest import review_session_with_decoy_taken
+
     root = generate_session(tmp_path_factory.mktemp("review") / "review", "review", 11, scale=0.25,
                             pan_step_deg=1.0, sub_rays=7)
+    review_session_with_decoy_taken(root)  # the decoy taken by the image detector, as the loop starts
     wb = Workbench(root, host="127.0.0.1", port=0)
     yield wb
     wb.stop()
