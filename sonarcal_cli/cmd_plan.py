@@ -3,7 +3,7 @@ whether the target precision is met (exit 0 either way; 2 on bad input)."""
 
 from __future__ import annotations
 
-from sonarcal_cli.ui import console, table
+from sonarcal_cli.ui import console, progress_bar, table
 
 
 def add_parser(sub) -> None:
@@ -52,7 +52,12 @@ def run(args) -> int:
         raise SessionError(None, f"--target: {e}") from None
     wr = _range(args.working_range)
     session = load_session(args.session)
-    detections = load_detections(session)
+    # as calibrate does: entries an operator validated are used as written, auto entries whose
+    # fingerprint still matches are reused, and what is missing is detected (not saved)
+    from calib_core.pipeline import detect_session
+
+    with progress_bar("detect") as cb:
+        detections = detect_session(session, load_detections(session), progress=cb)
     cal_path = calibration_path(session)
     calibration = load_calibration(cal_path) if cal_path.is_file() else None
     sp = plan_session(session, detections, calibration, target, None, args.count, args.criterion, working_range_m=wr)
