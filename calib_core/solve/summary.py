@@ -86,8 +86,11 @@ def scale_line(cal: dict) -> str:
     head = "range scale held at 1" if value in (None, 1, 1.0) else f"range scale {value:g}"
     if note.startswith("not observable") or note.startswith("too weakly"):
         return f"{head}: the scale is {note}"
-    if head == "range scale held at 1" and note.startswith("kept at 1: "):
-        note = note[len("kept at 1: "):]  # say "held at 1" once
+    if head == "range scale held at 1":  # say "held at 1" once
+        if note.startswith("held at 1"):
+            return f"range scale {note}"
+        if note.startswith("kept at 1: "):
+            note = note[len("kept at 1: "):]
     return f"{head}: {note}"
 
 
