@@ -193,7 +193,7 @@ def main() -> int:
 
     load = open("/proc/loadavg").read().split()[:3]
     rows = {}
-    with tempfile.TemporaryDirectory() as tmp, chromium(Path(tmp) / "profile", 1600, 1000) as ctx:
+    with tempfile.TemporaryDirectory() as tmp, chromium(1600, 1000) as ctx:
         tmp = Path(tmp)
         rows.update(bench_load(ctx, tmp, args.session, args.loads))
         if not args.load_only:
