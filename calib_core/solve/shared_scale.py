@@ -32,6 +32,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from calib_core.solve.model import CameraData, RigState, log_so3
+from calib_core.solve.outline import OutlineRangeProblem, RangeModel, outline_phrase, outline_summary, with_outline
 from calib_core.solve.refine import RigProblem, refine
 from calib_core.solve.scale import MAX_SCALE_SIGMA, SCALE_TEST_ALPHA, scale_observability
 
@@ -50,6 +51,15 @@ class CameraScaleFit:
     chi2_free: float
     dof_free: int
     chi2_fixed: float
+    model: RangeModel | None = None  # estimates the camera's outline bias when it says so
+    outline: dict | None = None  # the outline bias of the free-scale fit (outline_summary)
+
+
+def _range_problem(cd: CameraData, used: np.ndarray, model: RangeModel | None, estimate_scale: bool) -> RigProblem:
+    """The camera's problem with ranges: with an outline bias parameter when ``model`` estimates one."""
+    if model is not None and model.estimates_outline:
+        return OutlineRangeProblem(cd, used, model.sphere_radius_m, model.outline_sigma_px, estimate_scale)
+    return RigProblem([cd], [used], estimate_scale=estimate_scale, use_ranges=True)
 
 
 @dataclass
@@ -65,19 +75,21 @@ class SharedScale:
     note: str
 
 
-def _fit_camera(name: str, cd: CameraData, used: np.ndarray, T_cam_sonar: np.ndarray, robust) -> CameraScaleFit | None:
+def _fit_camera(name: str, cd: CameraData, used: np.ndarray, T_cam_sonar: np.ndarray, robust,
+                model: RangeModel | None = None) -> CameraScaleFit | None:
     """Free-scale and s = 1 fits of one camera with ranges; None when it has no ranges or cannot see s."""
     if not cd.has_ranges(used):
         return None
-    state0 = RigState(T_cam_sonar, {name: np.eye(4)})
-    fixed = refine(RigProblem([cd], [used], use_ranges=True), state0, robust=robust)
-    prob = RigProblem([cd], [used], estimate_scale=True, use_ranges=True)
+    state0 = with_outline(RigState(T_cam_sonar, {name: np.eye(4)}), 0.0)
+    fixed = refine(_range_problem(cd, used, model, False), state0, robust=robust)
+    prob = _range_problem(cd, used, model, True)
     if not scale_observability(prob, fixed.state)[0]:
         return None
     free = refine(prob, fixed.state, robust=robust)
     cov = free.cov
+    o = outline_summary(prob, free) if isinstance(prob, OutlineRangeProblem) else None
     return CameraScaleFit(name, cd, used, free.state, free.state.scale, float(cov[-1, -1]), cov[:6, -1] / cov[-1, -1],
-                          free.chi2, int(free.dof), fixed.chi2)
+                          free.chi2, int(free.dof), fixed.chi2, model, o)
 
 
 def _combine(fits: list[CameraScaleFit], rel_sigma: float) -> tuple[float, float, dict]:
@@ -113,8 +125,9 @@ def _combine(fits: list[CameraScaleFit], rel_sigma: float) -> tuple[float, float
 def _pose_at(f: CameraScaleFit, s: float, robust, range_factor: float = 1.0):
     """Refit one camera with ranges (times ``range_factor``) at a fixed scale: (T_cam_sonar, 6x6 cov, vf)."""
     cd = f.cd if range_factor == 1.0 else dataclasses.replace(f.cd, range_m=f.cd.range_m * range_factor)
-    st = RigState(f.state.T_ref_sonar, f.state.T_cam_ref, s)
-    res = refine(RigProblem([cd], [f.used], use_ranges=True), st, robust=robust)
+    st = with_outline(f.state)
+    st.scale = s
+    res = refine(_range_problem(cd, f.used, f.model, False), st, robust=robust)
     vf = res.variance_factor if res.dof > 0 else 1.0
     return res.state.T_ref_sonar, res.cov[:6, :6] * max(1.0, vf)
 
@@ -127,7 +140,7 @@ def _poses(fits, s, sigma, rel_sigma, robust, eps=1e-3) -> dict:
     """Every camera's pose at the shared scale with the scale's and the diameter's uncertainty added."""
     var_stat = max(sigma**2 - rel_sigma**2, 0.0)
     fits_d = [_fit_camera(f.name, dataclasses.replace(f.cd, range_m=f.cd.range_m * (1 + eps)), f.used,
-                          f.state.T_ref_sonar, robust) for f in fits] if rel_sigma > 0 else []
+                          f.state.T_ref_sonar, robust, f.model) for f in fits] if rel_sigma > 0 else []
     s_d = _combine(fits_d, 0.0)[0] if fits_d and all(fits_d) else s
     out = {}
     for f in fits:
@@ -141,33 +154,44 @@ def _poses(fits, s, sigma, rel_sigma, robust, eps=1e-3) -> dict:
     return out
 
 
-def shared_scale(cams: dict, mode: str, rel_sigma: float, robust: str | None = None) -> SharedScale | None:
+def shared_scale(cams: dict, mode: str, rel_sigma: float, robust: str | None = None,
+                 model: RangeModel | None = None) -> SharedScale | None:
     """One range scale from several cameras' diameter evidence (module doc).
 
     ``cams``: name -> (CameraData, used mask, T_cam_sonar of its s = 1 solve). ``mode``: "auto" or
-    "always" (see :func:`calib_core.solve.scale.scale_mode`). None when fewer than two cameras
-    carry ranges that see the scale (the one-camera route covers one)."""
-    fits = [f for f in (_fit_camera(n, cd, u, T, robust) for n, (cd, u, T) in cams.items()) if f is not None]
+    "always" (see :func:`calib_core.solve.scale.scale_mode`). ``rel_sigma``: the ranges' relative
+    systematic common to all cameras. ``model``: when it estimates the outline bias, each camera
+    fits its own (:mod:`calib_core.solve.outline`). None when fewer than two cameras carry ranges
+    that see the scale (the one-camera route covers one)."""
+    fits = [f for f in (_fit_camera(n, cd, u, T, robust, model) for n, (cd, u, T) in cams.items()) if f is not None]
     if len(fits) < 2:
         return None
     s, sigma, test = _combine(fits, rel_sigma)
-    per = {f.name: {"value": f.s, "sigma": math.sqrt(f.var)} for f in fits}
+    per = {f.name: {"value": f.s, "sigma": math.sqrt(f.var), **({"outline_bias": f.outline} if f.outline else {})}
+           for f in fits}
     est = f"{s:.5f} ± {sigma:.5f}"
     names = " + ".join(f.name for f in fits)
+    outlines = "; ".join(outline_phrase(f.name, f.outline) for f in fits if f.outline)
     if not test["cameras_agree"]:
         names += (" (they disagree: " + ", ".join(f"{f.name} {f.s:.4f}" for f in fits) +
                   f"; F test p = {test['cameras_agree_p_value']:.2g}; the sigma is widened to their scatter: check each "
                   f"camera's intrinsics and the sphere's apparent size)")
+    estimated, note = _verdict(mode, test, names, est, sigma)
+    note += f"; {outlines}" if outlines else ""
+    if estimated:
+        return SharedScale(s, sigma, True, test, per, _poses(fits, s, sigma, rel_sigma, robust), note)
+    return SharedScale(1.0, sigma, False, test, per, {}, note)
+
+
+def _verdict(mode: str, test: dict, names: str, est: str, sigma: float) -> tuple[bool, str]:
+    """(scale applied?, the note saying why) from the F test and the mode."""
     if mode == "always" or test["scaled_model_chosen"]:
         why = "forced (--scale)" if not test["scaled_model_chosen"] else \
             f"the data show a scale error (F test p = {test['p_value']:.2g} < {SCALE_TEST_ALPHA:g})"
-        return SharedScale(s, sigma, True, test, per, _poses(fits, s, sigma, rel_sigma, robust),
-                           f"estimated from {names} together: {why}")
+        return True, f"estimated from {names} together: {why}"
     if test["p_value"] < SCALE_TEST_ALPHA:  # a deviation, but known too poorly to apply
-        return SharedScale(1.0, sigma, False, test, per, {},
-                           f"kept at 1: {names} together put it at {est} (F test p = {test['p_value']:.2g}), but "
-                           f"the sphere's apparent size gives the scale only to ±{100 * sigma:.1f} %, worse than the "
-                           f"{100 * MAX_SCALE_SIGMA:g} % worth applying (--scale applies it)")
-    return SharedScale(1.0, sigma, False, test, per, {},
-                       f"kept at 1: {names} together show no scale error (free estimate {est}, F test p = "
-                       f"{test['p_value']:.2g} >= {SCALE_TEST_ALPHA:g})")
+        return False, (f"kept at 1: {names} together put it at {est} (F test p = {test['p_value']:.2g}), but "
+                       f"the sphere's apparent size gives the scale only to ±{100 * sigma:.1f} %, worse than the "
+                       f"{100 * MAX_SCALE_SIGMA:g} % worth applying (--scale applies it)")
+    return False, (f"kept at 1: {names} together show no scale error (free estimate {est}, F test p = "
+                   f"{test['p_value']:.2g} >= {SCALE_TEST_ALPHA:g})")
