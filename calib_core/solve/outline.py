@@ -165,6 +165,8 @@ def outline_phrase(name: str, o: dict) -> str:
     head = f"{name} outline bias {o['value_px']:+.2f} ± {o['sigma_px']:.2f} px"
     if o["separated"]:
         return f"{head} (told apart from the scale by apparent radii {lo:.0f}-{hi:.0f} px)"
-    return (f"{head}: not told apart from the scale (apparent radii only {lo:.0f}-{hi:.0f} px; the data alone give "
-            f"±{o['data_sigma_px']:.1f} px), so its ±{o['prior_sigma_px']:.1f} px tolerance limits the scale; "
-            f"captures over a wider range of distances separate them")
+    alone = f"the data alone give ±{o['data_sigma_px']:.1f} px" if math.isfinite(o["data_sigma_px"]) else \
+        "the data alone do not bound it"
+    return (f"{head}: not told apart from the scale (apparent radii only {lo:.0f}-{hi:.0f} px; {alone}), so its "
+            f"±{o['prior_sigma_px']:.1f} px tolerance limits the scale; captures over a wider range of distances "
+            f"separate them")

@@ -50,9 +50,10 @@ def _with_outline(cd, used, prob, res, mode, robust, model: RangeModel):
     res_r = refine(prob_r, with_outline(res.state, 0.0), robust=robust)
     prob_s = OutlineRangeProblem(cd, used, R, sig_o, estimate_scale=True)
     ch = choose_scale(prob_r, res_r, prob_s, mode, robust, systematic_var=model.diameter_rel_sigma**2)
-    fit_prob, fit = (prob_s, ch.res_free) if ch.res_free is not None else (prob_r, res_r)
-    o = outline_summary(fit_prob, fit)
-    test = None if ch.test is None else dict(ch.test, outline_bias=o)
+    # the outline bias as the free-scale fit sees it (held at 1 the scale would push into it)
+    free = ch.res_free if ch.res_free is not None else refine(prob_s, res_r.state, robust=robust)
+    o = outline_summary(prob_s, free)
+    test = dict(ch.test or {}, outline_bias=o)
     note = f"{ch.note}; {outline_phrase(cd.name, o)}"
     if not ch.estimated:
         return ScaleChoice(res, prob, False, ch.observable, note, test), 0.0
