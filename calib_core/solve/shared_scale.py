@@ -83,7 +83,8 @@ def _fit_camera(name: str, cd: CameraData, used: np.ndarray, T_cam_sonar: np.nda
     state0 = with_outline(RigState(T_cam_sonar, {name: np.eye(4)}), 0.0)
     fixed = refine(_range_problem(cd, used, model, False), state0, robust=robust)
     prob = _range_problem(cd, used, model, True)
-    if not scale_observability(prob, fixed.state)[0]:
+    # a camera that sees the scale only weakly still adds to the others (the combined sigma decides)
+    if not scale_observability(prob, fixed.state, max_sigma=math.inf)[0]:
         return None
     free = refine(prob, fixed.state, robust=robust)
     cov = free.cov
