@@ -117,3 +117,30 @@ def test_range_model_from_the_session(tmp_path):
     assert m.diameter_rel_sigma == pytest.approx(0.01) and m.outline_sigma_px == 1.0 and m.estimates_outline
     s.raw["sphere"]["outline_sigma_px"] = 0
     assert not range_model(s).estimates_outline
+
+
+def test_calibrate_one_camera_reports_the_outline_bias_in_every_shell(tmp_path, capsys):
+    import dataclasses
+    import json
+
+    import yaml
+    from test_solve_calibrate import write_session
+
+    from sonarcal_cli.main import main
+
+    rig = synthetic_rig(76, n_captures=15, scale=1.05, depth_m=(0.8, 3.0))
+    one = dataclasses.replace(rig, cameras={"cam1": rig.cameras["cam1"]})
+    root = write_session(tmp_path / "s", one, scale_stereo=False)
+    cd = _cd(rig, outline_px=1.5, seed=4)
+    dets = yaml.safe_load((root / "detections.yaml").read_text())
+    for k, cid in enumerate(rig.capture_ids):
+        dets["captures"][cid]["cam1"].update(range_m=float(cd.range_m[k]), range_sigma_m=float(cd.range_sigma_m[k]))
+    (root / "detections.yaml").write_text(yaml.safe_dump(dets))
+    assert main(["calibrate", str(root), "--no-loo"]) == 0
+    out = capsys.readouterr().out
+    sc = json.loads((root / "results" / "calibration.json").read_text())["range_scale"]
+    assert sc["estimated"] and abs(sc["value"] - 1.05) < 3 * sc["sigma"]
+    o = sc["outline_bias"]["cam1"]
+    assert abs(o["value_px"] - 1.5) < max(3 * o["sigma_px"], 0.3)
+    assert "outline bias estimated" in sc["source"] and "assumed" in sc["source"]
+    assert "cam1 outline bias +1." in out and "range scale 1.0" in out

@@ -204,8 +204,11 @@ def _single_scale(session, sols: dict, n_cams: int, opts) -> dict:
         source = f"{only.name} alone"
         if only.scale_observable:
             source = f"{only.name}: sphere ranges from its apparent size ({_range_systematics(session)})"
-        return _scale_entry(only.scale, only.scale_sigma, only.scale_sigma is not None, source,
-                            only.scale_note, only.scale_observable, only.scale_test)
+        entry = _scale_entry(only.scale, only.scale_sigma, only.scale_sigma is not None, source,
+                             only.scale_note, only.scale_observable, only.scale_test)
+        if (only.scale_test or {}).get("outline_bias"):
+            entry["outline_bias"] = {only.name: only.scale_test["outline_bias"]}
+        return entry
     if len(sols) >= 2:
         shared = _shared(session, sols, opts)
         if shared is not None:
@@ -241,6 +244,9 @@ def _shared(session, sols: dict, opts) -> dict | None:
               f"({_range_systematics(session)})")
     entry = _scale_entry(sh.value, sh.sigma if sh.estimated else None, sh.estimated, source, sh.note, True, sh.test)
     entry["per_camera"] = sh.per_camera
+    outlines = {c: v["outline_bias"] for c, v in sh.per_camera.items() if "outline_bias" in v}
+    if outlines:
+        entry["outline_bias"] = outlines
     entry["poses"] = sh.poses
     return entry
 
