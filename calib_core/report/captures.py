@@ -21,7 +21,7 @@ from calib_core.detect.reasons import entry_problem, residual_problem
 from calib_core.errors import SessionError
 from calib_core.geometry import look_at_T_cam_world
 from calib_core.camera import CameraModel
-from calib_core.report_render import colourise, crop_thumbnail, data_uri, fit_width, oblique_view, render_points
+from calib_core.report.render import colourise, crop_thumbnail, data_uri, fit_width, oblique_view, render_points
 
 
 UNCOLOURED = (235, 140, 50)  # orange: points no camera sees (or hidden), in the coloured-cloud renders
