@@ -96,77 +96,125 @@ def sonar_thumbnail(points_true_m: np.ndarray, centre_m: np.ndarray, radius_m: f
 def capture_view(session, cap, detections: dict, calibration: dict | None, models: dict[str, CameraModel],
                  opts: ReportOptions) -> CaptureView:
     """Everything the report shows for capture ``cap`` (a session Capture)."""
-    from calib_core.io.clouds import load_cloud
-    from calib_core.io.images import load_image
-
     view = CaptureView(cap.id)
     dets = detections.get(cap.id, {})
     s = range_scale(calibration)
-    try:
-        cloud = load_cloud(cap.cloud_path)
-        P = cloud.points_m / s
-        view.n_points = len(P)
-    except SessionError as e:
-        P = None
-        view.problems.append(str(e))
+    P = _load_points(cap, s, view)
     sonar_c = _centre(dets.get("sonar"))
     if entry_problem("sonar", dets.get("sonar")):
         view.problems.append(entry_problem("sonar", dets.get("sonar")))
     if P is not None and sonar_c is not None:
         X = sonar_c / s
         view.thumbs["sonar"] = data_uri(sonar_thumbnail(P, X, session.sphere_radius_m, opts.thumb_px), "png")
-    images, views = {}, []
+    ctx = _Context(session, calibration, opts, view, s, P, sonar_c)
+    views = []
     for cam, path in cap.image_paths.items():
-        model = models.get(cam)
-        try:
-            img = load_image(path)
-        except SessionError as e:
-            view.problems.append(str(e))
-            continue
-        if model is None or img.shape[:2] != (model.height_px, model.width_px):
-            view.problems.append(f"{path}: image size does not match the intrinsics of {cam}" if model else
-                                 f"{cam}: intrinsics unavailable")
-            continue
-        images[cam] = img
-        T = calibrated_T(calibration, cam)
-        entry = dets.get(cam) or {}
-        det_c = _centre(entry)
-        reproj = None
-        if T is not None and sonar_c is not None:
-            uv, _, ok = fusion.project_cloud((sonar_c / s)[None], T, model)
-            if ok[0]:
-                reproj = model.project((T[:3, :3] @ (sonar_c / s) + T[:3, 3])[None])[0]
-                view.reprojected_uv[cam] = [float(v) for v in reproj]
-                if det_c is not None:
-                    view.residual_px[cam] = [float(v) for v in reproj - det_c]
-        for why in (entry_problem(cam, entry), residual_problem(cam, view.residual_px.get(cam))):
-            if why:
-                view.problems.append(why)
-        drawn = fusion.draw_detection(img, det_c, entry.get("ellipse_px"), reproj, labels=False)
-        half = 0.06 * model.width_px
-        if isinstance(entry.get("radius_px"), (int, float)) and entry["radius_px"] > 0:
-            half = 2.2 * float(entry["radius_px"])
-        elif T is not None and sonar_c is not None:  # apparent radius from the sphere's depth
-            z = float(T[2, :3] @ (sonar_c / s) + T[2, 3])
-            half = 2.2 * model.fx * session.sphere_radius_m / z if z > 0.05 else half
-        view.thumbs[cam] = data_uri(crop_thumbnail(drawn, det_c if det_c is not None else reproj, half, opts.thumb_px))
-        if T is not None and P is not None:
-            uv, _, ok = fusion.project_cloud(P, T, model)
-            r = opts.mask_radius_px if opts.mask_radius_px is not None else 0.006 * model.width_px
-            mask = fusion.segmentation_mask(model, uv, r, ok)
-            over = fusion.draw_detection(fusion.overlay(img, mask, (40, 255, 80), 0.4), det_c, entry.get("ellipse_px"),
-                                         reproj)
-            view.overlays[cam] = data_uri(fit_width(over, opts.overlay_width_px), quality=opts.jpeg_quality)
-            views.append(fusion.CameraView(cam, img, model, T))
+        cv = _camera_part(ctx, cam, path, models.get(cam), dets.get(cam) or {})
+        if cv is not None:
+            views.append(cv)
     if views and P is not None:
-        colours, coloured, _ = fusion.colour_cloud_multi(P, views, fallback=UNCOLOURED)
-        view.coloured_fraction = float(coloured.mean()) if len(coloured) else 0.0
-        keep = np.arange(len(P))
-        if len(P) > opts.max_render_points:
-            keep = np.random.default_rng(0).choice(len(P), opts.max_render_points, replace=False)
-        w, h = opts.render_size_px
-        focus = P[coloured] if coloured.sum() >= 10 else P[keep]  # frame what the cameras see
-        vcam, T_view = oblique_view(focus, views[0].T_cam_sonar, w, h)
-        img = render_points(P[keep], colours[keep], vcam, T_view, splat_radius_px=2 if len(keep) < 50_000 else 1)
-        view.coloured_cloud = data_uri(img, quality=opts.jpeg_quality)
+        _coloured_cloud(view, P, views, opts)
     return view
+
+
+@dataclass
+class _Context:
+    """What every camera of one capture shares while its view is built."""
+
+    session: object
+    calibration: dict | None
+    opts: ReportOptions
+    view: CaptureView
+    scale: float  # range scale: true sonar points are cloud points / scale
+    P: np.ndarray | None  # the cloud's true points (None when it could not be read)
+    sonar_c: np.ndarray | None  # the detected sonar centre (cloud units)
+
+
+def _load_points(cap, s: float, view: CaptureView) -> np.ndarray | None:
+    from calib_core.io.clouds import load_cloud
+
+    try:
+        cloud = load_cloud(cap.cloud_path)
+    except SessionError as e:
+        view.problems.append(str(e))
+        return None
+    P = cloud.points_m / s
+    view.n_points = len(P)
+    return P
+
+
+def _camera_part(ctx: _Context, cam: str, path, model: CameraModel | None, entry: dict):
+    """Thumbnail, residual and overlay of camera ``cam`` (into ``ctx.view``); its CameraView for
+    colouring the cloud when calibrated, else None."""
+    from calib_core.io.images import load_image
+
+    view = ctx.view
+    try:
+        img = load_image(path)
+    except SessionError as e:
+        view.problems.append(str(e))
+        return None
+    if model is None or img.shape[:2] != (model.height_px, model.width_px):
+        view.problems.append(f"{path}: image size does not match the intrinsics of {cam}" if model else
+                             f"{cam}: intrinsics unavailable")
+        return None
+    T = calibrated_T(ctx.calibration, cam)
+    det_c = _centre(entry)
+    reproj = _reprojection(ctx, cam, model, T, det_c)
+    for why in (entry_problem(cam, entry), residual_problem(cam, view.residual_px.get(cam))):
+        if why:
+            view.problems.append(why)
+    drawn = fusion.draw_detection(img, det_c, entry.get("ellipse_px"), reproj, labels=False)
+    half = _thumb_half_px(ctx, model, T, entry)
+    view.thumbs[cam] = data_uri(crop_thumbnail(drawn, det_c if det_c is not None else reproj, half, ctx.opts.thumb_px))
+    if T is None or ctx.P is None:
+        return None
+    uv, _, ok = fusion.project_cloud(ctx.P, T, model)
+    opts = ctx.opts
+    r = opts.mask_radius_px if opts.mask_radius_px is not None else 0.006 * model.width_px
+    mask = fusion.segmentation_mask(model, uv, r, ok)
+    over = fusion.draw_detection(fusion.overlay(img, mask, (40, 255, 80), 0.4), det_c, entry.get("ellipse_px"), reproj)
+    view.overlays[cam] = data_uri(fit_width(over, opts.overlay_width_px), quality=opts.jpeg_quality)
+    return fusion.CameraView(cam, img, model, T)
+
+
+def _reprojection(ctx: _Context, cam: str, model: CameraModel, T, det_c):
+    """The sonar centre reprojected into camera ``cam`` (pixels, None when it cannot be), and
+    its residual against the image detection (both recorded in ``ctx.view``)."""
+    if T is None or ctx.sonar_c is None:
+        return None
+    X = ctx.sonar_c / ctx.scale
+    uv, _, ok = fusion.project_cloud(X[None], T, model)
+    if not ok[0]:
+        return None
+    reproj = model.project((T[:3, :3] @ X + T[:3, 3])[None])[0]
+    ctx.view.reprojected_uv[cam] = [float(v) for v in reproj]
+    if det_c is not None:
+        ctx.view.residual_px[cam] = [float(v) for v in reproj - det_c]
+    return reproj
+
+
+def _thumb_half_px(ctx: _Context, model: CameraModel, T, entry: dict) -> float:
+    """Half the side of a camera thumbnail: 2.2 sphere radii (detected, else from the sphere's
+    depth), else 6 % of the image width."""
+    half = 0.06 * model.width_px
+    if isinstance(entry.get("radius_px"), (int, float)) and entry["radius_px"] > 0:
+        half = 2.2 * float(entry["radius_px"])
+    elif T is not None and ctx.sonar_c is not None:  # apparent radius from the sphere's depth
+        z = float(T[2, :3] @ (ctx.sonar_c / ctx.scale) + T[2, 3])
+        half = 2.2 * model.fx * ctx.session.sphere_radius_m / z if z > 0.05 else half
+    return half
+
+
+def _coloured_cloud(view: CaptureView, P: np.ndarray, views: list, opts: ReportOptions) -> None:
+    """The cloud coloured by the cameras (Figs. 4-5), rendered obliquely, into ``view``."""
+    colours, coloured, _ = fusion.colour_cloud_multi(P, views, fallback=UNCOLOURED)
+    view.coloured_fraction = float(coloured.mean()) if len(coloured) else 0.0
+    keep = np.arange(len(P))
+    if len(P) > opts.max_render_points:
+        keep = np.random.default_rng(0).choice(len(P), opts.max_render_points, replace=False)
+    w, h = opts.render_size_px
+    focus = P[coloured] if coloured.sum() >= 10 else P[keep]  # frame what the cameras see
+    vcam, T_view = oblique_view(focus, views[0].T_cam_sonar, w, h)
+    img = render_points(P[keep], colours[keep], vcam, T_view, splat_radius_px=2 if len(keep) < 50_000 else 1)
+    view.coloured_cloud = data_uri(img, quality=opts.jpeg_quality)
