@@ -21,3 +21,10 @@ def print_table(header: list, rows: list, title: str | None = None, align: bool 
     if title:
         print(f"**{title}**\n")
     print(markdown_table(header, rows, align), flush=True)
+
+
+def print_targets(checks: list, title: str = "Targets") -> None:
+    """Print each ``(target, value, met)`` as ``[met] target: value`` (``[MISSED]`` when not met)."""
+    print(f"\n{title}")
+    for name, val, ok in checks:
+        print(f"  [{'met' if ok else 'MISSED'}] {name}: {val}")
