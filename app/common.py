@@ -121,11 +121,12 @@ class Refresher:
     def holding(self) -> bool:
         return self._holding
 
-    def wait_idle(self, timeout: float = 30.0) -> bool:
-        """True once nothing is pending, owed heavy handlers included (they wait for a release)."""
+    def wait_idle(self, timeout: float = 30.0, owed: bool = True) -> bool:
+        """True once nothing is pending; with ``owed``, held heavy handlers too (they wait for a
+        release)."""
         end = time.monotonic() + timeout
         with self._cv:
-            while self._dirty or self._busy or self._owed:
+            while self._dirty or self._busy or (owed and self._owed):
                 left = end - time.monotonic()
                 if left <= 0:
                     return False

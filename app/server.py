@@ -148,7 +148,7 @@ class Workbench:
             return
         self._stopped = True
         try:
-            self.refresher.wait_idle(10)
+            self.refresher.wait_idle(10, owed=False)  # what is held for a first page is dropped
             self.refresher.stop()
             diagnoser = getattr(self, "diagnoser", None)
             if diagnoser is not None:
@@ -222,7 +222,7 @@ class Workbench:
         try:
             if self._first_client.wait(FIRST_CLIENT_WAIT_S):
                 time.sleep(DETECT_GRACE_S)
-            if self.state.session is session and self.jobs.running is None:
+            if self.state.session is session and self.jobs.running is None and not self._stopped:
                 self.start_detection(pending, redetect_auto=False)
         except Exception as e:  # reported in the page
             self._job_error("detection", e)

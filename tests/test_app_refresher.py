@@ -45,6 +45,7 @@ def test_held_heavy_handlers_are_owed_once_and_run_on_release():
         r.mark("detections")
         r.mark("selection")
         assert not r.wait_idle(0.5)  # the image is owed: not idle until released
+        assert r.wait_idle(5, owed=False)  # (what stop() waits for: the owed work is dropped)
         assert log == ["table"]
         r.release()
         assert r.wait_idle(10)
