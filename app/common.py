@@ -13,7 +13,7 @@ import numpy as np
 import viser
 import viser.transforms as vtf
 
-from calib_core.errors import SessionError
+from calib_core.errors import Cancelled, SessionError
 
 log = logging.getLogger("sonarcal.app")
 
@@ -192,20 +192,27 @@ class JobRunner:
         self._thread: threading.Thread | None = None
         self._on_progress = on_progress
         self._on_error = on_error
+        self._cancel = threading.Event()
 
     def start(self, name: str, fn: Callable[[Callable[[int, int, str], None]], None]) -> None:
         with self._lock:
+            if self._cancel.is_set():
+                return  # shutting down
             if self.running is not None:
                 raise RuntimeError(f"'{self.running}' is still running; wait for it to finish")
             self.running = name
 
         def progress(done: int, total: int, label: str) -> None:
+            if self._cancel.is_set():
+                raise Cancelled(f"'{name}' cancelled")
             self._on_progress(name, 100.0 * done / max(total, 1), label)
 
         def run() -> None:
             try:
                 self._on_progress(name, 0.0, "starting")
                 fn(progress)
+            except Cancelled:
+                log.info("job %s cancelled", name)
             except Exception as e:  # reported in the page, the server lives on
                 if not isinstance(e, SessionError):
                     log.error("job %s failed:\n%s", name, traceback.format_exc())
@@ -217,6 +224,12 @@ class JobRunner:
 
         self._thread = threading.Thread(target=run, name=f"job-{name}", daemon=True)
         self._thread.start()
+
+    def cancel(self, timeout: float = 10.0) -> None:
+        """Ask the running job to stop at its next progress step (no new job starts), and wait
+        up to ``timeout`` s for it: what a job writes, it writes whole, so nothing is half-done."""
+        self._cancel.set()
+        self.join(timeout)
 
     def join(self, timeout: float | None = None) -> None:
         t = self._thread

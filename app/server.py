@@ -148,6 +148,7 @@ class Workbench:
             return
         self._stopped = True
         try:
+            self.jobs.cancel(10)  # a running detection stops at its next step; nothing half-written
             self.refresher.wait_idle(10, owed=False)  # what is held for a first page is dropped
             self.refresher.stop()
             diagnoser = getattr(self, "diagnoser", None)
