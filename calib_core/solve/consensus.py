@@ -17,7 +17,8 @@ whole (the forward search of Atkinson & Riani):
    outside the set fails it at 1 - ALPHA (the smallest of them is tested, so no Bonferroni
    correction: with only good captures left, the search stops early with probability at most
    ALPHA per step, and the final gate re-admits them).
-4. **Rivals**: the same search from the tightest cores made mostly of captures left out. A
+4. **Rivals**: the same search from the tightest cores made mostly of captures left out,
+   among those captures. A
    rival is a set that holds together (its own search, from its own tightest core, gives it
    back), is about as large (at most one capture fewer) and is about as tight (no F test of
    the two noise levels at 1 % tells them apart). A rival means there is no clear consensus;
@@ -64,6 +65,7 @@ class Consensus:
     rival: np.ndarray | None = None
     n_hypotheses: int = 0
     rival_T: np.ndarray | None = field(default=None, repr=False)
+    ranked: list = field(default_factory=list, repr=False)
 
 
 def sqpnp(X: np.ndarray, xy: np.ndarray) -> np.ndarray | None:
@@ -143,7 +145,7 @@ def forward_search(cd: CameraData, core, T0: np.ndarray, allowed: np.ndarray | N
         out = np.flatnonzero(allowed & ~inl)
         if not len(out):
             return inl, T, cov
-        ratio = _outside_ratio(cd, T, cov, inl)[out]
+        ratio = _outside_ratio(cd, T, cov, inl, allowed)[out]
         order = out[np.argsort(ratio)]
         passing = order[np.sort(ratio) <= 1.0]
         if not len(passing):
@@ -152,16 +154,16 @@ def forward_search(cd: CameraData, core, T0: np.ndarray, allowed: np.ndarray | N
         inl[passing[:k]] = True
 
 
-def _outside_ratio(cd: CameraData, T: np.ndarray, cov: np.ndarray, inl: np.ndarray) -> np.ndarray:
+def _outside_ratio(cd: CameraData, T: np.ndarray, cov: np.ndarray, inl: np.ndarray, allowed: np.ndarray) -> np.ndarray:
     """Each row's gate F over its critical value, for growing the set.
 
     The smallest of the outside statistics is tested, so no Bonferroni correction: its 1 - ALPHA
     quantile (the final gate of calib_core.solve.pnp tests the largest, with the correction). The
-    noise level is at least the median of every row's statistic (in chi-square(2) units): the
+    noise level is at least the median of the allowed rows' statistics (in chi-square(2) units): the
     tightest core is tight partly by luck, and its own 2 dof would make good captures look bad."""
     g = gate_test(cd, T, cov, inl)
     t = np.where(np.isfinite(g.t), g.t, np.inf)
-    v_rob = float(np.median(t)) / CHI2_2_MEDIAN
+    v_rob = float(np.median(t[allowed])) / CHI2_2_MEDIAN
     v_row = t / (2 * np.maximum(g.F, 1e-300))
     F = t / (2 * np.maximum(np.maximum(v_row, v_rob), 1e-300))
     return np.nan_to_num(F / f_critical(g.dof, 1), nan=np.inf, posinf=np.inf)
@@ -198,8 +200,8 @@ def _rival(cd: CameraData, found, ranked: list):
     inl, T, _ = found
     rivals = [c for c in ranked if int((~inl[list(c[1])]).sum()) >= 2][:N_RIVALS]
     best = None
-    for _, rows, T0 in rivals:
-        b, Tb, _ = forward_search(cd, rows, T0)
+    for _, rows, T0 in rivals:  # grown from what the consensus left out (and the rival's own core)
+        b, Tb, _ = forward_search(cd, rows, T0, allowed=~inl | _mask(len(cd), rows))
         if int((b & ~inl).sum()) < 2 or b.sum() < inl.sum() - 1:
             continue
         if not _same_noise(cd, (inl, T), (b, Tb)) or not _holds_together(cd, b, ranked):
@@ -211,7 +213,7 @@ def _rival(cd: CameraData, found, ranked: list):
 
 def find_consensus(cd: CameraData, max_hypotheses: int = 400, seed: int = 0) -> Consensus | None:
     """The largest set of captures that agree with one pose (see the module doc); None when no
-    hypothesis could be formed."""
+    hypothesis could be formed. Its ``clear`` is judged again on the final set by :func:`judge`."""
     ranked, tried = cores(cd, max_hypotheses, seed)
     if not ranked:
         return None
@@ -222,9 +224,14 @@ def find_consensus(cd: CameraData, max_hypotheses: int = 400, seed: int = 0) -> 
     if rival is not None and rival[0].sum() > inl.sum():  # the larger of two sets that hold together
         inl, T = rival[0], rival[1]
         T, cov = fit_subset(cd, inl, T)
-        rival = (found[0], found[1])
-    return Consensus(T, inl, cov, rival is None, None if rival is None else rival[0], tried,
-                     None if rival is None else rival[1])
+    return Consensus(T, inl, cov, True, None, tried, None, ranked)
+
+
+def judge(cd: CameraData, cons: Consensus, inl: np.ndarray, T: np.ndarray) -> Consensus:
+    """The consensus with ``clear`` and ``rival`` judged on the final set ``inl`` at pose ``T``."""
+    rival = _rival(cd, (inl, T, None), cons.ranked)
+    return Consensus(T, inl, cons.cov, rival is None, None if rival is None else rival[0], cons.n_hypotheses,
+                     None if rival is None else rival[1], cons.ranked)
 
 
 def _ids(cd: CameraData, mask: np.ndarray) -> str:

@@ -14,7 +14,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from calib_core.solve.consensus import CORE, fit_subset, find_consensus, no_consensus_phrase, sqpnp
+from calib_core.solve.consensus import CORE, find_consensus, fit_subset, judge, no_consensus_phrase, sqpnp
 from calib_core.solve.gate import ALPHA, GateResult, gate_test, next_set
 from calib_core.solve.model import CameraData, check_count, per_camera_stats
 
@@ -81,6 +81,7 @@ def ransac_pose(cd: CameraData, gate: float = CHI2_2_999, max_hypotheses: int = 
     if cons is None:
         raise_no_pose(cd)
     T, inl, stat = _gate_loop(cd, cons.T_cam_sonar, cons.inliers)
+    cons = judge(cd, cons, inl, T)
     factor = float(np.sum(per_camera_stats(cd, T)[3][inl])) / max(2 * int(inl.sum()) - 6, 1)
     if not cons.clear:
         warnings.append(no_consensus_phrase(cd, cons))
