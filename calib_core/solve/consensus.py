@@ -20,7 +20,7 @@ whole (the forward search of Atkinson & Riani):
 4. **Rivals**: the same search from the tightest cores made mostly of captures left out,
    among those captures. A
    rival is a set that holds together (its own search, from its own tightest core, gives it
-   back), is about as large (at most one capture fewer) and is about as tight (no F test of
+   back), is about as large (at most one capture fewer, and at least MIN_RIVAL) and is about as tight (no F test of
    the two noise levels at 1 % tells them apart). A rival means there is no clear consensus;
    :func:`no_consensus_phrase` says so, once for every shell.
 
@@ -46,6 +46,7 @@ CORE = 4  # captures in a core (SQPnP's minimum; 2 dof left to judge it)
 MIN_HYPOTHESES = 40
 N_RIVALS = 3  # rival searches tried
 RIVAL_ALPHA = 0.01  # F test of two noise levels: below this they differ
+MIN_RIVAL = 5  # a rival needs 4 dof of its own: any 4 captures fit some pose within 2 dof of luck
 BATCH_FROM = 12  # from this set size on, several agreeing captures join per step
 
 
@@ -163,7 +164,8 @@ def _outside_ratio(cd: CameraData, T: np.ndarray, cov: np.ndarray, inl: np.ndarr
     tightest core is tight partly by luck, and its own 2 dof would make good captures look bad."""
     g = gate_test(cd, T, cov, inl)
     t = np.where(np.isfinite(g.t), g.t, np.inf)
-    v_rob = float(np.median(t[allowed])) / CHI2_2_MEDIAN
+    ta = np.sort(t[allowed])
+    v_rob = float(ta[(len(ta) - 1) // 2]) / CHI2_2_MEDIAN  # the lower median: half may be wrong
     v_row = t / (2 * np.maximum(g.F, 1e-300))
     F = t / (2 * np.maximum(np.maximum(v_row, v_rob), 1e-300))
     return np.nan_to_num(F / f_critical(g.dof, 1), nan=np.inf, posinf=np.inf)
@@ -202,7 +204,7 @@ def _rival(cd: CameraData, found, ranked: list):
     best = None
     for _, rows, T0 in rivals:  # grown from what the consensus left out (and the rival's own core)
         b, Tb, _ = forward_search(cd, rows, T0, allowed=~inl | _mask(len(cd), rows))
-        if int((b & ~inl).sum()) < 2 or b.sum() < inl.sum() - 1:
+        if int((b & ~inl).sum()) < 2 or b.sum() < max(inl.sum() - 1, MIN_RIVAL):
             continue
         if not _same_noise(cd, (inl, T), (b, Tb)) or not _holds_together(cd, b, ranked):
             continue
