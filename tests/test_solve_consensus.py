@@ -56,12 +56,12 @@ def test_the_old_failure_is_gone_all_wrong_ones_flagged_on_a_clear_case():
 
 
 def test_no_clear_consensus_is_said_plainly():
-    """Five captures agree with one pose and five with another: say so, do not pretend."""
-    rig = synthetic_rig(7, n_captures=10, sigma_px=0.3, sigma_m=0.001)
+    """Six captures agree with one pose and five with another: say so, do not pretend."""
+    rig = synthetic_rig(7, n_captures=11, sigma_px=0.3, sigma_m=0.001)
     uv = rig.uv_px["cam1"].copy()
     T_other = make_T(exp_so3([0.0, np.radians(3.0), np.radians(2.0)]), [0.05, -0.05, 0.0]) @ rig.T_cam_sonar["cam1"]
-    other = rig.cameras["cam1"].project(rig.X_sonar_m[5:] @ T_other[:3, :3].T + T_other[:3, 3])
-    uv[5:] = other + np.random.default_rng(1).normal(0, 0.3, other.shape)
+    other = rig.cameras["cam1"].project(rig.X_sonar_m[6:] @ T_other[:3, :3].T + T_other[:3, 3])
+    uv[6:] = other + np.random.default_rng(1).normal(0, 0.3, other.shape)
     cd = camera_data("cam1", rig.cameras["cam1"], rig.capture_ids, uv, rig.cov_uv_px2["cam1"], rig.X_sonar_m,
                      rig.cov_X_m2)
     sol = solve_camera(cd, loo=False)

@@ -165,7 +165,8 @@ def _outside_ratio(cd: CameraData, T: np.ndarray, cov: np.ndarray, inl: np.ndarr
     g = gate_test(cd, T, cov, inl)
     t = np.where(np.isfinite(g.t), g.t, np.inf)
     ta = np.sort(t[allowed])
-    v_rob = float(ta[(len(ta) - 1) // 2]) / CHI2_2_MEDIAN  # the lower median: half may be wrong
+    # the upper median: the core's own rows (fitted, no deleted residual) count among the small ones
+    v_rob = float(ta[len(ta) // 2]) / CHI2_2_MEDIAN
     v_row = t / (2 * np.maximum(g.F, 1e-300))
     F = t / (2 * np.maximum(np.maximum(v_row, v_rob), 1e-300))
     return np.nan_to_num(F / f_critical(g.dof, 1), nan=np.inf, posinf=np.inf)
