@@ -47,7 +47,8 @@ MIN_HYPOTHESES = 40
 N_RIVALS = 3  # rival searches tried
 RIVAL_ALPHA = 0.01  # F test of two noise levels: below this they differ
 MIN_RIVAL = 5  # a rival needs 4 dof of its own: any 4 captures fit some pose within 2 dof of luck
-BATCH_FROM = 12  # from this set size on, several agreeing captures join per step
+BATCH_FROM = 12
+NO_CONSENSUS = "no clear consensus"  # the words that open the phrase, for shells that look for it  # from this set size on, several agreeing captures join per step
 
 
 @dataclass
@@ -244,6 +245,6 @@ def _ids(cd: CameraData, mask: np.ndarray) -> str:
 def no_consensus_phrase(cd: CameraData, cons: Consensus) -> str:
     """What to say when two different sets of captures each agree with a pose (one phrase, every shell)."""
     rival = cons.rival if cons.rival is not None else np.zeros(len(cd), bool)
-    return (f"{cd.name}: no clear consensus: captures {_ids(cd, cons.inliers)} agree with one pose and "
+    return (f"{cd.name}: {NO_CONSENSUS}: captures {_ids(cd, cons.inliers)} agree with one pose and "
             f"{_ids(cd, rival)} with another, about as many and as tightly; the pose shown uses the first and may "
             f"be wrong: check these detections (wrong sphere found?) or add captures")
