@@ -25,6 +25,7 @@ MIN_CHECK = 6  # with fewer captures outliers cannot be told apart
 # EXACT_TOP worst) are tested exactly, by a refit without them.
 EXACT_SCREEN = 0.2
 EXACT_TOP = 3
+READMIT_MARGIN = 4.0  # see _readmit
 
 
 @dataclass
@@ -106,10 +107,16 @@ def _gate_loop(cd: CameraData, T0: np.ndarray, inl: np.ndarray):
 
     Returns (pose, inliers, gate result)."""
     T, inl, res = _drop(cd, T0, inl)
-    if inl.sum() > CORE:  # a set of CORE rows leaves 2 dof for its noise level: too few to vouch for others
+    seen = {inl.tobytes()}
+    # a set of CORE rows leaves 2 dof for its noise level: too few to vouch for others
+    while inl.sum() > CORE and not inl.all():
         extra = _readmit(cd, T, inl, res)
-        if extra.any():
-            T, inl, res = _drop(cd, T, inl | extra)
+        if not extra.any():
+            break
+        T, inl, res = _drop(cd, T, inl | extra)
+        if inl.tobytes() in seen:
+            break
+        seen.add(inl.tobytes())
     return T, inl, res
 
 
@@ -126,24 +133,29 @@ def _drop(cd: CameraData, T: np.ndarray, inl: np.ndarray):
 
 
 def _readmit(cd: CameraData, T: np.ndarray, inl: np.ndarray, res: GateResult) -> np.ndarray:
-    """Captures outside ``inl`` that pass the gate one by one and, together, the joint F test
-    against ``inl``: (chi2 with them - chi2 without) / (2k) over the set's variance factor, at the
-    1 - ALPHA/n quantile of F(2k, dof). Joint, and always against the same set, so wrong centres
-    that each pass narrowly (a small set predicts far rows loosely) cannot swamp it one by one."""
+    """Captures outside ``inl`` that do not plainly contradict it, jointly: (chi2 with them - chi2
+    without) / (2k) over the set's variance factor, within READMIT_MARGIN times the 1 - ALPHA/n
+    quantile of F(2k, dof). Joint, and always against the same set, so wrong centres that each
+    pass narrowly (a small set predicts far rows loosely) cannot swamp it one by one. The margin:
+    the set was grown from the tightest captures, so its variance factor is low by selection and
+    good captures look somewhat bad against it; the drop test that follows, on the larger set,
+    decides them at the stated rate."""
     from scipy.special import fdtri
 
     n = len(cd)
     chi_a = float(np.sum(per_camera_stats(cd, T)[3][inl]))
     dof_a = 2 * int(inl.sum()) - 6
-    ratio = np.nan_to_num(res.ratio, nan=np.inf, posinf=np.inf)
+    t = np.where(np.isfinite(res.t), res.t, np.inf)
     extra = np.zeros(n, bool)
-    for j in np.flatnonzero(~inl & (ratio <= 1.0))[np.argsort(ratio[~inl & (ratio <= 1.0)])]:
+    for j in np.flatnonzero(~inl)[np.argsort(t[~inl])]:
+        if not np.isfinite(t[j]):
+            break
         trial = inl | extra
         trial[j] = True
         T2, _ = fit_subset(cd, trial, T)
         k = int((trial & ~inl).sum())
         F = (float(np.sum(per_camera_stats(cd, T2)[3][trial])) - chi_a) / (2 * k) / max(chi_a / dof_a, 1e-300)
-        if F <= fdtri(2 * k, dof_a, 1 - ALPHA / n):
+        if F <= READMIT_MARGIN * fdtri(2 * k, dof_a, 1 - ALPHA / n):
             extra[j] = True
     return extra
 
