@@ -204,9 +204,13 @@ def _rival(cd: CameraData, found, ranked: list):
     inl, T, _ = found
     rivals = [c for c in ranked if int((~inl[list(c[1])]).sum()) >= 2][:N_RIVALS]
     best = None
+    need = max(int(inl.sum()) - 1, MIN_RIVAL)
     for _, rows, T0 in rivals:  # grown from what the consensus left out (and the rival's own core)
-        b, Tb, _ = forward_search(cd, rows, T0, allowed=~inl | _mask(len(cd), rows))
-        if int((b & ~inl).sum()) < 2 or b.sum() < max(inl.sum() - 1, MIN_RIVAL):
+        allowed = ~inl | _mask(len(cd), rows)
+        if allowed.sum() < need:
+            continue
+        b, Tb, _ = forward_search(cd, rows, T0, allowed=allowed)
+        if int((b & ~inl).sum()) < 2 or b.sum() < need:
             continue
         if not _same_noise(cd, (inl, T), (b, Tb)) or not _holds_together(cd, b, ranked):
             continue

@@ -19,7 +19,6 @@ from calib_core.solve.gate import ALPHA, GateResult, gate_test, next_set
 from calib_core.solve.model import CameraData, check_count, per_camera_stats
 
 CHI2_2_999 = 13.8155  # chi-square, 2 dof, 99.9 %: the gate for "this capture does not fit"
-CHI2_2_99 = 9.2103  # 99 %: "suspicious"
 MIN_CHECK = 6  # with fewer captures outliers cannot be told apart
 # Rows in the fit whose linearised deleted statistic reaches this share of the critical value (the
 # EXACT_TOP worst) are tested exactly, by a refit without them.
