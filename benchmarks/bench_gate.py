@@ -173,7 +173,7 @@ def main(argv=None):
 
 
 def _print_d(trials):
-    print(f"\nD. Several wrong image centres, {a.trials} sessions per row")
+    print(f"\nD. Several wrong image centres, {trials} sessions per row")
     print(f"{'n':>3} {'wrong':>5} | {'wrong left out':>14} {'right kept':>10} {'exact set':>9} {'no clear':>8} | "
           f"{'worst rot deg':>13}")
     for n, k in ((8, 0), (8, 2), (8, 3), (10, 4), (15, 5)):
