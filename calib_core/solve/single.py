@@ -11,6 +11,7 @@ from calib_core.solve.diagnostics import capture_rows, leave_one_out
 from calib_core.solve.model import CameraData, RigState, check_count, per_camera_stats
 from calib_core.solve.pnp import layout_warnings, ransac_pose
 from calib_core.solve.refine import RigProblem, refine
+from calib_core.solve.systematic import systematic_term
 from calib_core.solve.scale import ScaleChoice, choose_scale, diameter_term, scale_mode
 
 
@@ -100,7 +101,7 @@ def solve_camera(cd: CameraData, estimate_scale: bool | str | None = None, robus
     T = res.state.T_ref_sonar
     vf = res.variance_factor if res.dof > 0 else 1.0
     inflate = max(1.0, vf)
-    cov_full = res.cov * inflate + extra
+    cov_full = res.cov * inflate + extra + systematic_term(prob, res, robust)  # + model errors common to all
     if ch.estimated:
         scale_sigma = math.sqrt(cov_full[-1, -1])
     cov6 = cov_full[:6, :6]
