@@ -11,8 +11,8 @@ captures:
 - each camera's image centres shifted by the same pixel offset (shading, blur through the
   camera's gamma): ``IMAGE_OFFSET_SIGMA_PX`` in u and in v, independently per camera.
 
-The fit is repeated with each offset applied (a finite difference); the parameter shift per
-unit offset ``g`` adds ``g g^T sigma^2`` to the parameter covariance.
+The parameter shift per unit offset ``g`` (one Gauss-Newton step at the optimum with each
+offset applied: a refit, to first order) adds ``g g^T sigma^2`` to the parameter covariance.
 """
 
 from __future__ import annotations
@@ -21,8 +21,7 @@ import dataclasses
 
 import numpy as np
 
-from calib_core.solve.model import log_so3
-from calib_core.solve.refine import RefineResult, RigProblem, refine
+from calib_core.solve.refine import RefineResult, RigProblem, jacobian, weights_for
 
 SONAR_RADIAL_SIGMA_M = 0.001
 IMAGE_OFFSET_SIGMA_PX = 0.1
@@ -30,18 +29,14 @@ _EPS_M = 1e-3
 _EPS_PX = 1.0
 
 
-def _shift(problem: RigProblem, res: RefineResult, cams: list, robust: str | None) -> np.ndarray:
+def _shift(problem: RigProblem, res: RefineResult, cams: list, lin) -> np.ndarray:
+    """Parameter shift of the fit when its data become ``cams``: one Gauss-Newton step at the
+    optimum with the weights held (exact to first order, as a refit would be)."""
+    Ws, J, r0 = lin
     p2 = RigProblem(cams, problem.masks, problem.links, estimate_scale=problem.estimate_scale,
                     use_ranges=len(problem.range_rows) > 0)
-    r2 = refine(p2, res.state, robust=robust, max_outer=4)
-    T0, T1 = res.state.T_ref_sonar, r2.state.T_ref_sonar
-    d = [log_so3(T1[:3, :3] @ T0[:3, :3].T), T1[:3, 3] - T0[:3, 3]]
-    for n in problem.free_links:
-        L0, L1 = res.state.T_cam_ref[n], r2.state.T_cam_ref[n]
-        d += [log_so3(L1[:3, :3] @ L0[:3, :3].T), L1[:3, 3] - L0[:3, 3]]
-    if problem.estimate_scale:
-        d.append(np.atleast_1d(r2.state.scale - res.state.scale))
-    return np.concatenate(d)
+    dr = p2.whitened(res.state, Ws) - r0
+    return -np.linalg.lstsq(J, dr, rcond=None)[0]
 
 
 def systematic_term(problem: RigProblem, res: RefineResult, robust: str | None = None,
@@ -50,12 +45,14 @@ def systematic_term(problem: RigProblem, res: RefineResult, robust: str | None =
     """(n x n) covariance, in the problem's parameter perturbation, of the common offsets above."""
     n = problem.n_params
     out = np.zeros((n, n))
+    Ws, _ = weights_for(problem, res.state, robust, 2.5)
+    lin = (Ws, jacobian(problem, res.state, Ws), problem.whitened(res.state, Ws))
     if sonar_sigma_m > 0:
         moved = []
         for cd in problem.cams:
             u = cd.X_sonar_m / np.linalg.norm(cd.X_sonar_m, axis=1, keepdims=True)
             moved.append(dataclasses.replace(cd, X_sonar_m=cd.X_sonar_m + _EPS_M * u))
-        g = _shift(problem, res, moved, robust) / _EPS_M
+        g = _shift(problem, res, moved, lin) / _EPS_M
         out += np.outer(g, g) * sonar_sigma_m**2
     if image_sigma_px > 0:
         for k, cd in enumerate(problem.cams):
@@ -64,6 +61,6 @@ def systematic_term(problem: RigProblem, res: RefineResult, robust: str | None =
                 uv[:, axis] += _EPS_PX
                 cams = list(problem.cams)
                 cams[k] = dataclasses.replace(cd, uv_px=uv, xy=cd.cam.normalize(uv))
-                g = _shift(problem, res, cams, robust) / _EPS_PX
+                g = _shift(problem, res, cams, lin) / _EPS_PX
                 out += np.outer(g, g) * image_sigma_px**2
     return 0.5 * (out + out.T)
