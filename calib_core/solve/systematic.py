@@ -40,9 +40,11 @@ def _shift(problem: RigProblem, res: RefineResult, cams: list, lin) -> np.ndarra
 
 
 def systematic_term(problem: RigProblem, res: RefineResult, robust: str | None = None,
-                    sonar_sigma_m: float = SONAR_RADIAL_SIGMA_M,
-                    image_sigma_px: float = IMAGE_OFFSET_SIGMA_PX) -> np.ndarray:
-    """(n x n) covariance, in the problem's parameter perturbation, of the common offsets above."""
+                    sonar_sigma_m: float | None = None, image_sigma_px: float | None = None) -> np.ndarray:
+    """(n x n) covariance, in the problem's parameter perturbation, of the common offsets above
+    (sigmas default to the module's constants)."""
+    sonar_sigma_m = SONAR_RADIAL_SIGMA_M if sonar_sigma_m is None else sonar_sigma_m
+    image_sigma_px = IMAGE_OFFSET_SIGMA_PX if image_sigma_px is None else image_sigma_px
     n = problem.n_params
     out = np.zeros((n, n))
     Ws, _ = weights_for(problem, res.state, robust, 2.5)
