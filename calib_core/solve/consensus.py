@@ -46,6 +46,8 @@ CORE = 4  # captures in a core (SQPnP's minimum; 2 dof left to judge it)
 MIN_HYPOTHESES = 40
 N_RIVALS = 3  # rival searches tried
 RIVAL_ALPHA = 0.01  # F test of two noise levels: below this they differ
+# the only trust put in the stated covariances: they are not more than ~3x too large (in sigma)
+MIN_VARIANCE_FACTOR = 0.1
 MIN_RIVAL = 5  # a rival needs 4 dof of its own: any 4 captures fit some pose within 2 dof of luck
 BATCH_FROM = 12
 NO_CONSENSUS = "no clear consensus"  # the words that open the phrase, for shells that look for it  # from this set size on, several agreeing captures join per step
@@ -162,12 +164,14 @@ def _outside_ratio(cd: CameraData, T: np.ndarray, cov: np.ndarray, inl: np.ndarr
     The smallest of the outside statistics is tested, so no Bonferroni correction: its 1 - ALPHA
     quantile (the final gate of calib_core.solve.pnp tests the largest, with the correction). The
     noise level is at least the median of the allowed rows' statistics (in chi-square(2) units): the
-    tightest core is tight partly by luck, and its own 2 dof would make good captures look bad."""
+    tightest core is tight partly by luck, and its own 2 dof would make good captures look bad; and
+    it is at least MIN_VARIANCE_FACTOR: when the core is all that fits that well, only the stated
+    covariances can say that a capture outside it is good."""
     g = gate_test(cd, T, cov, inl)
     t = np.where(np.isfinite(g.t), g.t, np.inf)
     ta = np.sort(t[allowed])
     # the upper median: the core's own rows (fitted, no deleted residual) count among the small ones
-    v_rob = float(ta[len(ta) // 2]) / CHI2_2_MEDIAN
+    v_rob = max(float(ta[len(ta) // 2]) / CHI2_2_MEDIAN, MIN_VARIANCE_FACTOR)
     v_row = t / (2 * np.maximum(g.F, 1e-300))
     F = t / (2 * np.maximum(np.maximum(v_row, v_rob), 1e-300))
     return np.nan_to_num(F / f_critical(g.dof, 1), nan=np.inf, posinf=np.inf)
