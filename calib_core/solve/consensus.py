@@ -84,9 +84,10 @@ def sqpnp(X: np.ndarray, xy: np.ndarray) -> np.ndarray | None:
     return T_from_rotvec(rvec.ravel(), tvec.ravel())
 
 
-def fit_subset(cd: CameraData, inl: np.ndarray, T0: np.ndarray, max_outer: int = 6):
-    """Linear start on ``inl`` (when it beats T0) then ML refinement: (T_cam_sonar, 6x6 covariance)."""
-    T_lin = sqpnp(cd.X_sonar_m[inl], cd.xy[inl])
+def fit_subset(cd: CameraData, inl: np.ndarray, T0: np.ndarray, max_outer: int = 6, linear: bool = True):
+    """Linear start on ``inl`` (when ``linear`` and it beats T0) then ML refinement: (T_cam_sonar,
+    6x6 covariance)."""
+    T_lin = sqpnp(cd.X_sonar_m[inl], cd.xy[inl]) if linear else None
     cands = [T0] + ([T_lin] if T_lin is not None else [])
     costs = [float(np.sum(np.minimum(per_camera_stats(cd, T)[3][inl], 1e6))) for T in cands]
     start = cands[int(np.argmin(costs))]
@@ -145,7 +146,8 @@ def forward_search(cd: CameraData, core, T0: np.ndarray, allowed: np.ndarray | N
     allowed = np.ones(n, bool) if allowed is None else allowed
     T = T0
     while True:
-        T, cov = fit_subset(cd, inl, T, max_outer=3)
+        # warm-started from the previous step's pose (one capture more): two weight refreshes do
+        T, cov = fit_subset(cd, inl, T, max_outer=2, linear=inl.sum() == CORE)
         out = np.flatnonzero(allowed & ~inl)
         if not len(out):
             return inl, T, cov
