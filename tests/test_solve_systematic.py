@@ -21,7 +21,7 @@ def test_a_common_radial_offset_moves_the_pose_as_the_term_says():
                      rig.X_sonar_m, rig.cov_X_m2)
     prob = RigProblem([cd])
     res = refine(prob, RigState(rig.T_cam_sonar["cam1"], {"cam1": np.eye(4)}))
-    C = systematic_term(prob, res, sonar_sigma_m=0.002, image_sigma_px=0.0)
+    C = systematic_term(prob, res.state, sonar_sigma_m=0.002, image_sigma_px=0.0)
     assert np.all(np.linalg.eigvalsh(C) > -1e-15) and np.linalg.matrix_rank(C, tol=1e-12 * np.abs(C).max()) == 1
     # push every sonar centre 2 mm along its ray: the refit moves by one sigma of the term
     u = cd.X_sonar_m / np.linalg.norm(cd.X_sonar_m, axis=1, keepdims=True)
@@ -31,6 +31,6 @@ def test_a_common_radial_offset_moves_the_pose_as_the_term_says():
     d = np.r_[rotvec_from_T(T1 @ invert_T(T0)), T1[:3, 3] - T0[:3, 3]]
     assert abs(d @ np.linalg.pinv(C) @ d - 1.0) < 0.05
     # the image term scales with its sigma squared
-    Ci1 = systematic_term(prob, res, sonar_sigma_m=0.0, image_sigma_px=0.1)
-    Ci2 = systematic_term(prob, res, sonar_sigma_m=0.0, image_sigma_px=0.2)
+    Ci1 = systematic_term(prob, res.state, sonar_sigma_m=0.0, image_sigma_px=0.1)
+    Ci2 = systematic_term(prob, res.state, sonar_sigma_m=0.0, image_sigma_px=0.2)
     assert np.allclose(Ci2, 4 * Ci1, rtol=1e-6, atol=1e-18)

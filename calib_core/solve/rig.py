@@ -90,7 +90,7 @@ def solve_rig(solutions: dict[str, CameraSolution], links: dict[str, Link], refe
     note = ch.note
     vf = res.variance_factor if res.dof > 0 else 1.0
     # the stated covariance scaled by the variance factor, plus the model errors common to all captures
-    res_c = dataclasses.replace(res, cov=res.cov * max(1.0, vf) + systematic_term(prob, res, robust))
+    res_c = dataclasses.replace(res, cov=res.cov * max(1.0, vf) + systematic_term(prob, res.state, robust))
     scale_sigma = math.sqrt(res_c.cov[-1, -1]) if ch.estimated else None
     Ts = {n: res.state.T_cam_sonar(n) for n in names}
     covs = {n: pose_covariance(prob, res_c, n) for n in names}

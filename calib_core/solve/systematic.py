@@ -21,7 +21,8 @@ import dataclasses
 
 import numpy as np
 
-from calib_core.solve.refine import RefineResult, RigProblem, jacobian, weights_for
+from calib_core.solve.model import RigState
+from calib_core.solve.refine import RigProblem, jacobian, weights_for
 
 SONAR_RADIAL_SIGMA_M = 0.001
 IMAGE_OFFSET_SIGMA_PX = 0.1
@@ -29,32 +30,32 @@ _EPS_M = 1e-3
 _EPS_PX = 1.0
 
 
-def _shift(problem: RigProblem, res: RefineResult, cams: list, lin) -> np.ndarray:
+def _shift(problem: RigProblem, state: RigState, cams: list, lin) -> np.ndarray:
     """Parameter shift of the fit when its data become ``cams``: one Gauss-Newton step at the
     optimum with the weights held (exact to first order, as a refit would be)."""
     Ws, J, r0 = lin
     p2 = RigProblem(cams, problem.masks, problem.links, estimate_scale=problem.estimate_scale,
                     use_ranges=len(problem.range_rows) > 0)
-    dr = p2.whitened(res.state, Ws) - r0
+    dr = p2.whitened(state, Ws) - r0
     return -np.linalg.lstsq(J, dr, rcond=None)[0]
 
 
-def systematic_term(problem: RigProblem, res: RefineResult, robust: str | None = None,
+def systematic_term(problem: RigProblem, state: RigState, robust: str | None = None,
                     sonar_sigma_m: float | None = None, image_sigma_px: float | None = None) -> np.ndarray:
-    """(n x n) covariance, in the problem's parameter perturbation, of the common offsets above
-    (sigmas default to the module's constants)."""
+    """(n x n) covariance, in the parameter perturbation of ``problem`` (a plain RigProblem) at its
+    optimum ``state``, of the common offsets above (sigmas default to the module's constants)."""
     sonar_sigma_m = SONAR_RADIAL_SIGMA_M if sonar_sigma_m is None else sonar_sigma_m
     image_sigma_px = IMAGE_OFFSET_SIGMA_PX if image_sigma_px is None else image_sigma_px
     n = problem.n_params
     out = np.zeros((n, n))
-    Ws, _ = weights_for(problem, res.state, robust, 2.5)
-    lin = (Ws, jacobian(problem, res.state, Ws), problem.whitened(res.state, Ws))
+    Ws, _ = weights_for(problem, state, robust, 2.5)
+    lin = (Ws, jacobian(problem, state, Ws), problem.whitened(state, Ws))
     if sonar_sigma_m > 0:
         moved = []
         for cd in problem.cams:
             u = cd.X_sonar_m / np.linalg.norm(cd.X_sonar_m, axis=1, keepdims=True)
             moved.append(dataclasses.replace(cd, X_sonar_m=cd.X_sonar_m + _EPS_M * u))
-        g = _shift(problem, res, moved, lin) / _EPS_M
+        g = _shift(problem, state, moved, lin) / _EPS_M
         out += np.outer(g, g) * sonar_sigma_m**2
     if image_sigma_px > 0:
         for k, cd in enumerate(problem.cams):
@@ -63,6 +64,6 @@ def systematic_term(problem: RigProblem, res: RefineResult, robust: str | None =
                 uv[:, axis] += _EPS_PX
                 cams = list(problem.cams)
                 cams[k] = dataclasses.replace(cd, uv_px=uv, xy=cd.cam.normalize(uv))
-                g = _shift(problem, res, cams, lin) / _EPS_PX
+                g = _shift(problem, state, cams, lin) / _EPS_PX
                 out += np.outer(g, g) * image_sigma_px**2
     return 0.5 * (out + out.T)
