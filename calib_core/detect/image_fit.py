@@ -41,6 +41,12 @@ CLEAN_RMS_FRAC = 0.012
 # band outside the outline with the colour a little farther out, which clutter varies by
 # itself: a looser limit there.
 OUTSIDE_MISMATCH_CLUTTER = 0.35
+# a fit that had to leave out the edges of things touching the sphere must be this much rounder
+# than the clean limit on the edges it keeps
+TIGHT_RMS_FRACTION = 0.5
+# an edge point's gradient must exceed this many times the region's median gradient (noise,
+# texture); a median of a noise-only gradient magnitude is ~1.5 sigma, so this is ~4 sigma
+EDGE_NOISE_FACTOR = 2.5
 PASS1_MAX_RMS_PX = 2.5
 PASS1_MAX_RMS_FRAC = 0.04
 
@@ -87,6 +93,7 @@ class _Signal:
                                    SMOOTH_SIGMA_PX)
         else:
             self.img = smooth_roi(image, x0, y0, x1, y1, SMOOTH_SIGMA_PX)
+        self.noise = _typical_gradient(self.diff if self.diff is not None else self.img)
 
     def profiles(self, pts, nrm, t, far_t_frac=0.15):
         """(K,M,c) signal: |image - background| with a background, else |image - local
@@ -102,6 +109,16 @@ class _Signal:
         if self.diff is not None:
             return sample_profiles(self.diff, self.origin, pts, nrm, t)
         return sample_profiles(self.img, self.origin, pts, nrm, t)
+
+
+def _typical_gradient(roi: np.ndarray) -> float:
+    """Median gradient magnitude (per px) of a smoothed region, on every third row: the level
+    of noise and texture an outline's edge has to stand out from."""
+    r = roi[::3] if roi.ndim == 3 else roi[::3, :, None]
+    if r.shape[1] < 3:
+        return 0.0
+    d = 0.5 * (r[:, 2:] - r[:, :-2])
+    return float(np.median(np.sqrt((d * d).sum(axis=2))))
 
 
 def refine_candidate(image: np.ndarray, cam: CameraModel, cand: Candidate, sphere_radius_m: float,
@@ -236,15 +253,27 @@ def _pass2(cam, sig, fit1: ConeFit, R: float, a_range_rad, rng):
         if best is not None and best[0].sigma_px <= 0.5 * max(CLEAN_RMS_PX, CLEAN_RMS_FRAC * R) \
                 and best[0].inliers.mean() >= 0.9:
             break  # the envelope reading is clean already
-        te, s2 = pick_edges(t2, g2, rule, 0.3 * g2_typ)
+        # an edge must stand out from the region's noise and texture: in noise alone, the
+        # outermost of the small gradient peaks sits at the band's end for every normal and
+        # makes a "round outline" of its own
+        te, s2 = pick_edges(t2, g2, rule, max(0.3 * g2_typ, EDGE_NOISE_FACTOR * sig.noise))
         ok2 = np.isfinite(te) & inside_img
         if ok2.sum() < 12:
             continue
         uv2 = sil[ok2] + te[ok2, None] * nrm[ok2]
         # edge points are within a few px of the model outline: Newton from its normalised points
         xy2 = normalize_near(cam, uv2, sil_xy[ok2], iterations=3)
-        fit = fit_cone(cam, xy2, a_range_rad, inlier_px=max(1.0, 0.01 * R), rng=rng,
-                       corr_points=max(1.0, CORR_LENGTH_PX * k2 / perim), start=(fit1.w, fit1.a_rad))
+        kw = dict(inlier_px=max(1.0, 0.01 * R), rng=rng, corr_points=max(1.0, CORR_LENGTH_PX * k2 / perim))
+        fit = fit_cone(cam, xy2, a_range_rad, start=(fit1.w, fit1.a_rad), **kw)
+        if fit is None or fit.sigma_px > max(CLEAN_RMS_PX, CLEAN_RMS_FRAC * R):
+            # edges of things touching the sphere (a seat, a backrest) pulled the fit off:
+            # search again for the cone the tightest majority of the edges lie on
+            # (it must be very round on the edges it keeps: a circle forced onto a box or onto
+            # chair legs keeps a few tangent stretches, each off by up to the band)
+            alt = fit_cone(cam, xy2, a_range_rad, tight=True, **kw)
+            if (alt is not None and alt.sigma_px <= TIGHT_RMS_FRACTION * max(CLEAN_RMS_PX, CLEAN_RMS_FRAC * R)
+                    and (fit is None or _quality(alt) > _quality(fit))):
+                fit = alt
         if fit is not None and (best is None or _quality(fit) > _quality(best[0])):
             best = (fit, ok2, s2, k2)
     return best
