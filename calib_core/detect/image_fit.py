@@ -44,6 +44,8 @@ OUTSIDE_MISMATCH_CLUTTER = 0.35
 # a fit that had to leave out the edges of things touching the sphere must be this much rounder
 # than the clean limit on the edges it keeps
 TIGHT_RMS_FRACTION = 0.5
+# ... and still lie on most of the outline (a half circle in clutter is too easily had)
+TIGHT_MIN_SUPPORT = 0.6
 # an edge point's gradient must exceed this many times the region's median gradient (noise,
 # texture); a median of a noise-only gradient magnitude is ~1.5 sigma, so this is ~4 sigma
 EDGE_NOISE_FACTOR = 2.5
@@ -272,6 +274,7 @@ def _pass2(cam, sig, fit1: ConeFit, R: float, a_range_rad, rng):
             # chair legs keeps a few tangent stretches, each off by up to the band)
             alt = fit_cone(cam, xy2, a_range_rad, tight=True, **kw)
             if (alt is not None and alt.sigma_px <= TIGHT_RMS_FRACTION * max(CLEAN_RMS_PX, CLEAN_RMS_FRAC * R)
+                    and alt.inliers.sum() >= TIGHT_MIN_SUPPORT * k2
                     and (fit is None or _quality(alt) > _quality(fit))):
                 fit = alt
         if fit is not None and (best is None or _quality(fit) > _quality(best[0])):
