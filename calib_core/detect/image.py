@@ -28,7 +28,7 @@ import numpy as np
 
 from calib_core.camera import CameraModel
 from calib_core.detect.image_fit import CandidateFit, refine_candidate
-from calib_core.detect.image_fit import CLEAN_RMS_FRAC, CLEAN_RMS_PX
+from calib_core.detect.image_fit import clean_rms_px
 from calib_core.detect.image_hough import hough_circle
 from calib_core.detect.image_score import features, probability
 from calib_core.detect.image_votes import candidates_by_votes
@@ -362,13 +362,13 @@ def _in_order(cands, max_candidates):
 
 
 def _new_candidates(fits, more: list[Candidate]) -> list[Candidate]:
-    """Second-cue candidates that are not what was looked at already: far from every candidate
-    tried (a vote candidate placed 20 % of its radius off can miss an outline that a region
-    candidate on it finds) and from every credible outline fitted."""
+    """Second-cue candidates that are not what was looked at already: not at a credible outline
+    fitted, nor where a candidate tried found no edges at all (a vote candidate a little off
+    can miss an outline that a region candidate a few px away finds)."""
     out = []
     for c in more:
-        if any(np.hypot(*(c.centre_px - o.centre_px)) < 0.2 * max(c.radius_px, o.radius_px)
-               and 0.8 < c.radius_px / o.radius_px < 1.25 for o, _ in fits):
+        if any(f.fit is None and np.hypot(*(c.centre_px - o.centre_px)) < 0.1 * max(c.radius_px, o.radius_px)
+               and 0.8 < c.radius_px / o.radius_px < 1.25 for o, f in fits):
             continue
         if any(f.credible and np.hypot(*(c.centre_px - f.centre_uv_px)) < 0.5 * _mean_radius(f.silhouette_px)
                for _, f in fits):
@@ -445,7 +445,7 @@ def _detection(f: CandidateFit, sphere_radius_m: float, method: str, n_cands: in
     # wrong diameter in session.yaml shows up as a range that disagrees with the sonar's
     extras["angular_radius_deg"] = round(float(np.degrees(f.fit.a_rad)), 5)
     extras["fit_quality"] = round(f.score, 4)
-    score = probability(features(extras, apparent_r, max(CLEAN_RMS_PX, CLEAN_RMS_FRAC * apparent_r)), f.score)
+    score = probability(features(extras, apparent_r, clean_rms_px(apparent_r)), f.score)
     return ImageDetection(found=True, center_uv_px=f.centre_uv_px, cov_uv_px2=f.cov_uv_px2,
                           score=score, ellipse_px=_ellipse_px(f.silhouette_px),
                           radius_px=apparent_r, range_m=f.range_m, method=method, extras=extras)

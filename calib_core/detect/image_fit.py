@@ -37,6 +37,16 @@ SYS_FRACTION = 0.2
 MIN_SUPPORT = 0.5
 CLEAN_RMS_PX = 0.9
 CLEAN_RMS_FRAC = 0.012
+# Below SMALL_RADIUS_PX (the smallest sphere the detector is meant for) the floor shrinks with
+# the radius: 0.9 px on an 8 px circle is a tenth of it (a rounded icon, a screw head).
+SMALL_RADIUS_PX = 15.0
+
+
+def clean_rms_px(radius_px: float) -> float:
+    """Largest edge RMS (px) of a round outline of this apparent radius."""
+    return max(CLEAN_RMS_FRAC * radius_px, CLEAN_RMS_PX * min(1.0, radius_px / SMALL_RADIUS_PX))
+
+
 # Without a background image the "looks like the surroundings just outside" test compares the
 # band outside the outline with the colour a little farther out, which clutter varies by
 # itself: a looser limit there.
@@ -183,7 +193,7 @@ def refine_candidate(image: np.ndarray, cam: CameraModel, cand: Candidate, spher
     # ---- pass 2: along the normals of the fitted silhouette, narrow band (twice when the
     # first pass-2 fit is still rough: clutter drew pass 1 off the outline)
     p2 = _pass2(cam, sig, fit1, R, a_range_rad, rng)
-    if p2 is not None and p2[0].sigma_px > max(CLEAN_RMS_PX, CLEAN_RMS_FRAC * R):
+    if p2 is not None and p2[0].sigma_px > clean_rms_px(R):
         again = _pass2(cam, sig, p2[0], R, a_range_rad, rng)
         if again is not None and _quality(again[0]) > _quality(p2[0]):
             p2 = again
@@ -211,7 +221,9 @@ def refine_candidate(image: np.ndarray, cam: CameraModel, cand: Candidate, spher
         if visible.sum() >= 8 else 1.0
     res.extras["outside_mismatch"] = round(outside_bad, 4)
     # a clean outline, maybe cut by the border: things inside it are its texture
-    clean = fit.sigma_px <= max(CLEAN_RMS_PX, CLEAN_RMS_FRAC * R)
+    # judged at the fitted size (the candidate's coarse size can be well off)
+    r_fit = float(np.mean(np.linalg.norm(sil_f - sil_f.mean(axis=0), axis=1)))
+    clean = fit.sigma_px <= clean_rms_px(min(R, r_fit))
     res.credible = support >= 0.45 and clean and outside_bad <= 0.2
     res.extras["outline_coverage"] = round(support, 3)
     if not cam.in_image(sil_f, margin_px=1.0).all():
@@ -224,7 +236,7 @@ def refine_candidate(image: np.ndarray, cam: CameraModel, cand: Candidate, spher
         res.ok, res.reason = False, f"outline {100 * (1 - support):.0f} % hidden or too faint"
     elif (outside_bad > (0.2 if sig.diff is not None else OUTSIDE_MISMATCH_CLUTTER)
           and not (support >= 0.7 and outside_bad <= 0.5
-                   and fit.sigma_px <= 0.35 * max(CLEAN_RMS_PX, CLEAN_RMS_FRAC * R))):
+                   and fit.sigma_px <= 0.35 * clean_rms_px(R))):
         # (a mostly visible, very clean round outline is a sphere whatever lies around it: a
         # ball resting on a block, in front of clutter)
         # the object goes on beyond the fitted outline: part of something larger (or cut)
@@ -252,7 +264,7 @@ def _pass2(cam, sig, fit1: ConeFit, R: float, a_range_rad, rng):
     # background, also the strongest edge (clutter just outside the outline makes edges too)
     best = None
     for rule in ("outermost",) if sig.diff is not None else ("outermost", "strongest"):
-        if best is not None and best[0].sigma_px <= 0.5 * max(CLEAN_RMS_PX, CLEAN_RMS_FRAC * R) \
+        if best is not None and best[0].sigma_px <= 0.5 * clean_rms_px(R) \
                 and best[0].inliers.mean() >= 0.9:
             break  # the envelope reading is clean already
         # an edge must stand out from the region's noise and texture: in noise alone, the
@@ -267,13 +279,13 @@ def _pass2(cam, sig, fit1: ConeFit, R: float, a_range_rad, rng):
         xy2 = normalize_near(cam, uv2, sil_xy[ok2], iterations=3)
         kw = dict(inlier_px=max(1.0, 0.01 * R), rng=rng, corr_points=max(1.0, CORR_LENGTH_PX * k2 / perim))
         fit = fit_cone(cam, xy2, a_range_rad, start=(fit1.w, fit1.a_rad), **kw)
-        if fit is None or fit.sigma_px > max(CLEAN_RMS_PX, CLEAN_RMS_FRAC * R):
+        if fit is None or fit.sigma_px > clean_rms_px(R):
             # edges of things touching the sphere (a seat, a backrest) pulled the fit off:
             # search again for the cone the tightest majority of the edges lie on
             # (it must be very round on the edges it keeps: a circle forced onto a box or onto
             # chair legs keeps a few tangent stretches, each off by up to the band)
             alt = fit_cone(cam, xy2, a_range_rad, tight=True, **kw)
-            if (alt is not None and alt.sigma_px <= TIGHT_RMS_FRACTION * max(CLEAN_RMS_PX, CLEAN_RMS_FRAC * R)
+            if (alt is not None and alt.sigma_px <= TIGHT_RMS_FRACTION * clean_rms_px(R)
                     and alt.inliers.sum() >= TIGHT_MIN_SUPPORT * k2
                     and (fit is None or _quality(alt) > _quality(fit))):
                 fit = alt
