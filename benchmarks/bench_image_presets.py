@@ -27,7 +27,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from calib_core.detect.image import detect_sphere_in_image  # noqa: E402
-from calib_core.detect.image_score import reliability_table, scored_centre  # noqa: E402
+from calib_core.detect.image_score import reliability_table  # noqa: E402
 from calib_core.synth.image_cases import KINDS, render_case  # noqa: E402
 
 TOL_PX = 3.0
@@ -42,9 +42,7 @@ def _negatives(kind, seed, scale, st, listing) -> None:
         st["neg"] += 1
         if det.found:
             st["neg_false"] += 1
-        sc = scored_centre(det)
-        if sc is not None:
-            st["scored"].append((sc[0], False))
+            st["scored"].append((det.score, False))
         if listing:
             print(f"{case.label + ' no ball':24s} bg={use_bg!s:5s} found={det.found!s:5s} score={det.score:.2f} {det.reason}")
 
@@ -65,9 +63,8 @@ def run(kinds, seeds, scale, listing=False, negatives=False) -> dict:
                 st["ms"].append(1e3 * (time.perf_counter() - t0))
                 st["n"] += 1
                 err = float(np.hypot(*(det.center_uv_px - case.true_uv_px))) if det.found else None
-                sc = scored_centre(det)  # found, or refused only for a low score
-                if sc is not None:
-                    st["scored"].append((sc[0], float(np.hypot(*(sc[1] - case.true_uv_px))) <= TOL_PX))
+                if det.found:
+                    st["scored"].append((det.score, err <= TOL_PX))
                 if det.found and err <= TOL_PX:
                     st["hit"] += 1
                     st["errs"].append(err)

@@ -10,8 +10,7 @@ has one (no sonar-guided second look: the image side on its own). Against the gr
 - "missed": the whole ball is visible (truth ``visible``) and nothing was found;
 - wrong detections at or above a score of 0.5 are listed by name ("confident wrong").
 
-Also the reliability table of the scores (right = within 3 px), detections refused only for a
-low score ("weak round outline") included at their score.
+Also the reliability table of the scores (right = within 3 px).
 
 Run: .venv/bin/python benchmarks/bench_image_sessions.py [--presets P ...] [--seeds 41-60]
      [--scale 0.5] [--cache DIR] [--list]
@@ -31,7 +30,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from calib_core.detect.image import detect_sphere_in_image  # noqa: E402
-from calib_core.detect.image_score import reliability_table, scored_centre  # noqa: E402
+from calib_core.detect.image_score import reliability_table  # noqa: E402
 from calib_core.detect.reasons import reason_kind  # noqa: E402
 from calib_core.io.images import load_image  # noqa: E402
 from calib_core.pipeline import SessionData  # noqa: E402
@@ -77,10 +76,8 @@ def run_session(root: Path, preset: str, seed: int, st: dict, listing: bool) -> 
             st[verdict] += 1
             st["visible"] += bool(truth.get("visible"))
             name = f"{preset} s{seed} {cap.id} {cam}"
-            sc = scored_centre(det)  # found, or refused only for a low score
-            if sc is not None:
-                uv = truth.get("center_uv_px")
-                st["scored"].append((sc[0], uv is not None and np.hypot(*(sc[1] - np.asarray(uv, float))) <= TOL_PX))
+            if det.found:
+                st["scored"].append((det.score, verdict == "right"))
             if verdict == "wrong":
                 uv = truth.get("center_uv_px")
                 off = np.hypot(*(det.center_uv_px - uv)) if uv is not None else float("nan")

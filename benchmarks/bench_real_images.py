@@ -32,7 +32,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from calib_core.detect.image import detect_sphere_in_image  # noqa: E402
-from calib_core.detect.image_score import reliability_table, scored_centre  # noqa: E402
+from calib_core.detect.image_score import reliability_table  # noqa: E402
 from calib_core.io.images import load_image  # noqa: E402
 from calib_core.session import load_session  # noqa: E402
 
@@ -71,10 +71,8 @@ def run(session_dir: Path, listing: bool = False) -> dict:
                    if det.found and r.get("centre_uv_px") else None)
             whole = r["flag"] == "whole"
             st["whole"] += whole
-            sc = scored_centre(det)  # found, or refused only for a low score
-            if sc is not None:
-                e_sc = float(np.hypot(*(sc[1] - r["centre_uv_px"]))) if r.get("centre_uv_px") else None
-                st["scores"].append((sc[0], e_sc is not None and e_sc <= TOL_PX and whole))
+            if det.found:
+                st["scores"].append((det.score, err is not None and err <= TOL_PX and whole))
             if whole and det.found and err <= TOL_PX:
                 st["hit"] += 1
                 st["errs"].append(err)

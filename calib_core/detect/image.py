@@ -108,19 +108,6 @@ HIDDEN_NAMED_SUPPORT = 0.3
 CUT = "sphere cut by the image border"
 
 
-# A detection scored below this is refused ("weak round outline"): on held-out synthetic
-# scenes (ball-free ones included) and on kinectnet, detections scored under 0.5 were right far
-# less often than not (BENCHMARKS.md, reliability tables); the score is P(right within 3 px).
-MIN_FOUND_SCORE = 0.5
-WEAK_OUTLINE = "weak round outline"
-
-
-def weak_outline_reason(score: float, centre_uv_px) -> str:
-    """'weak round outline (score 0.21 < 0.5) at (u, v)' (the operator-readable refusal)."""
-    return (f"{WEAK_OUTLINE} (score {score:.2f} < {MIN_FOUND_SCORE:g}) "
-            f"at ({centre_uv_px[0]:.0f}, {centre_uv_px[1]:.0f})")
-
-
 def two_objects_reason(centres_uv_px) -> str:
     """'two round objects: (u, v) and (u, v)' (the operator-readable refusal)."""
     pts = " and ".join(f"({c[0]:.0f}, {c[1]:.0f})" for c in centres_uv_px)
@@ -281,8 +268,7 @@ def detect_sphere_in_image(image_rgb: np.ndarray, cam: CameraModel, sphere_radiu
     if background is None or (det.found and det.extras.get("edge_contrast", 0) >= FAINT_CONTRAST):
         return det
     guessed_cut = det.reason == CUT and "partial_center_uv_px" not in det.extras  # a blob at the border
-    if not det.found and not (det.reason == NO_OUTLINE or "hidden" in det.reason or guessed_cut
-                              or det.reason.startswith(WEAK_OUTLINE)):
+    if not det.found and not (det.reason == NO_OUTLINE or "hidden" in det.reason or guessed_cut):
         return det  # a fitted cut outline, two round objects, bad input: say so
     alone = _detect_once(image_rgb, cam, sphere_radius_m, None, **kw)
     if alone.found and (not det.found or alone.score * alone.radius_px > det.score * det.radius_px):
@@ -436,13 +422,6 @@ def _verdict(look, fits, cands, method, hinted: bool) -> ImageDetection:
         return _not_found("apparent size outside the plausible range", method)
     runner_up = _evidence(good[1][1]) / max(_evidence(f), 1e-9) if len(good) > 1 else 0.0
     det = _detection(f, look.radius_m, method, len(cands), runner_up)
-    if det.score < MIN_FOUND_SCORE and not hinted:
-        # kept as a candidate (u, v, range_m) that a caller with another clue (the sonar's
-        # range, a click) may confirm; never reported as found on its own
-        u, v = det.center_uv_px
-        return _not_found(weak_outline_reason(det.score, det.center_uv_px), method, candidates=len(cands),
-                          weak_score=round(det.score, 4),
-                          two_candidates=[[round(float(u), 2), round(float(v), 2), round(float(det.range_m), 4)]])
     if method == "hough-circle":
         h = hough_circle(look.img, f.centre_uv_px, det.radius_px)
         if h is None:

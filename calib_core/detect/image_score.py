@@ -61,16 +61,6 @@ def fit_logistic(X: np.ndarray, y: np.ndarray, l2: float = 1e-2, iters: int = 50
     return w
 
 
-def scored_centre(det) -> tuple[float, np.ndarray] | None:
-    """(score, centre uv px) of a detection for a reliability table: a found one, or one refused
-    only for its low score (its centre kept as the single candidate), else None."""
-    if det.found:
-        return float(det.score), np.asarray(det.center_uv_px, float)
-    if "weak_score" in det.extras and det.extras.get("two_candidates"):
-        return float(det.extras["weak_score"]), np.asarray(det.extras["two_candidates"][0][:2], float)
-    return None
-
-
 RELIABILITY_BINS = (0.0, 0.5, 0.8, 0.9, 0.95, 1.0001)
 
 

@@ -24,7 +24,6 @@ def reason_kind(reason: str) -> str:
     if m:  # the solver's "image: <detector reason>"
         prefix, r = m.group(1) + ": ", m.group(2)
     r = r.split(" at (")[0].split(":")[0]
-    r = re.sub(r"\s*\(score [^)]*\)", "", r)  # "weak round outline (score 0.21 < 0.5)"
     r = re.sub(r"\(?-?\d+(\.\d+)?\)?", "", r)
     return prefix + (re.sub(r"\s+", " ", r).strip() or reason)
 
