@@ -105,7 +105,14 @@ class _Signal:
                                    SMOOTH_SIGMA_PX)
         else:
             self.img = smooth_roi(image, x0, y0, x1, y1, SMOOTH_SIGMA_PX)
-        self.noise = _typical_gradient(self.diff if self.diff is not None else self.img)
+        self._noise = None
+
+    @property
+    def noise(self) -> float:
+        """Median gradient magnitude of the region (computed once, when pass 2 needs it)."""
+        if self._noise is None:
+            self._noise = _typical_gradient(self.diff if self.diff is not None else self.img)
+        return self._noise
 
     def profiles(self, pts, nrm, t, far_t_frac=0.15):
         """(K,M,c) signal: |image - background| with a background, else |image - local
