@@ -118,6 +118,9 @@ def report(tails: str, rows, n: int, k_obs: float, factor: float) -> None:
     print(f"  F-test expected catch rate (sigma from the data)    {100 * fpow.mean():6.1f}%")
     print(f"  observable moves (evidence >= {k_obs:.2f} sigma)          {int(obs.sum()):4d} of {len(rows)}")
     print(f"  moved caught among observable moves (separate row) {100 * caught[obs].mean():6.1f}%")
+    sure = fpow >= 0.99
+    print(f"  moves the F test itself catches with >= 99 % power   {int(sure.sum()):4d} of {len(rows)}, "
+          f"caught {100 * caught[sure].mean():.1f}%")
     misses = [r for r in rows if not r[5]]
     if misses:
         print(f"  misses: {'seed':>6} {'row':>3} {'move px':>8} {'img px/sig':>10} {'evidence sig':>12} "

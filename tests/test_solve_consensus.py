@@ -76,3 +76,22 @@ def test_clean_captures_all_kept():
         rig, cd, good = _wrong_centres(seed, 9, 0, stated=1.0)
         sol = solve_camera(cd, loo=False)
         assert sol.used.all() and not any("consensus" in w for w in sol.warnings)
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_readmission_takes_back_good_captures_and_not_a_wrong_one(seed):
+    """Left out of the set: one good capture and one 40 px wrong centre. One at a time, best first,
+    the good one comes back and the wrong one does not."""
+    from calib_core.solve import pnp
+    from calib_core.solve.consensus import fit_subset
+    from calib_core.solve.gate import gate_test
+
+    rig, cd, _ = _wrong_centres(seed, 10, 0, stated=1.0)
+    uv = cd.uv_px.copy()
+    uv[1] += [40.0, 0.0]
+    cd = camera_data("cam1", rig.cameras["cam1"], rig.capture_ids, uv, cd.cov_uv_px2, cd.X_sonar_m, cd.cov_X_m2)
+    inl = np.ones(10, bool)
+    inl[[0, 1]] = False
+    T, cov = fit_subset(cd, inl, rig.T_cam_sonar["cam1"])
+    extra = pnp._readmit(cd, T, inl, gate_test(cd, T, cov, inl))
+    assert extra[0] and not extra[1] and not extra[inl].any()
