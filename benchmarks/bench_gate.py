@@ -18,6 +18,9 @@ C. Moved target: one capture's sonar centre is moved 10-20 cm in a random direct
    the camera's ray (a move along the ray does not change the image and no camera-only test
    can see it). The share of trials in which that capture is left out (target >= 99 %), and
    the share of the other (good) captures dropped as well.
+   ``--reference tN`` replaces the drop test's F critical values by those of Student-t
+   components with N dof (Monte Carlo): the tail-robust reference tried for issue 12.
+   ``bench_gate_misses.py`` analyses the moved targets part C misses.
 D. Several wrong image centres (issue 11/12): k of n centres moved 30-80 px in random
    directions (calib_core.solve.simulate.wrong_centres), true noise 0.3 px / 1 mm, stated image
    sigma x0.5. The share of wrong centres left out, of right ones kept, of sessions where the

@@ -17,11 +17,14 @@ trial, how visible the move is:
   has little evidence however large it is in pixels.
 - ``oracle power``: the chance that the oracle chi-square(2) test at the gate's per-capture
   level (ALPHA / n) flags it: P(chi2_2(lambda) > crit). Its mean over the trials is the best
-  catch rate any test at that false-alarm rate could reach.
+  catch rate any test at that false-alarm rate could reach with the true sigmas known.
+- ``F power``: the same for the gate's own kind of test, the noise level estimated from the
+  other captures (noncentral F(2, 2n - 8)): the best a test that trusts no stated sigma can do.
 
-Printed: per noise law, the catch rate (the issue's row), the oracle's expected rate, the
-catch rate among observable moves (evidence >= K_OBSERVABLE sigma: the oracle's power is at
-least 99 % there), and every miss with its numbers.
+Printed: per noise law, the catch rate (the issue's row), both expected rates, the catch rate
+among observable moves (evidence >= k sigma, k where the oracle's power reaches 99 %: a
+separate row, never the issue's), the catch rate among moves the F test catches with >= 99 %
+power, and every miss with its numbers.
 """
 
 from __future__ import annotations

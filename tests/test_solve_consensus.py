@@ -80,8 +80,8 @@ def test_clean_captures_all_kept():
 
 @pytest.mark.parametrize("seed", [0, 1, 2])
 def test_readmission_takes_back_good_captures_and_not_a_wrong_one(seed):
-    """Left out of the set: one good capture and one 40 px wrong centre. One at a time, best first,
-    the good one comes back and the wrong one does not."""
+    """Left out of the set: one good capture and one 40 px wrong centre. The gate's re-admission takes
+    the good one back and not the wrong one."""
     from calib_core.solve import pnp
     from calib_core.solve.consensus import fit_subset
     from calib_core.solve.gate import gate_test
