@@ -166,8 +166,12 @@ def main(argv=None):
     ap.add_argument("--reference", default="gauss",
                     help="reference law of the gate's drop test: gauss (F, the tool's) or tN (Student-t components "
                          "with N dof, critical values by Monte Carlo): the heavy-tail experiment of issue 12")
+    ap.add_argument("--alpha", type=float, default=None,
+                    help="family-wise false-alarm rate of the gate to try instead of the tool's (experiment)")
     a = ap.parse_args(argv)
     print(f"load average before: {os.getloadavg()}")
+    if a.alpha is not None:
+        _use_alpha(a.alpha)
     if a.reference != "gauss":
         _use_t_reference(int(a.reference[1:]))
     if "D" in a.parts:
@@ -190,6 +194,16 @@ def t_critical(dof, n: int, alpha: float, nu: int, draws: int = 400_000) -> np.n
         F = np.sum(e[:, :2] ** 2, axis=1) / 2 / (np.sum(e[:, 2:] ** 2, axis=1) / d)
         out[dof == d] = np.quantile(F, 1 - alpha / max(n, 1))
     return out
+
+
+def _use_alpha(alpha: float) -> None:
+    """Run the gate (drop test, forward search, re-admission) at another family-wise rate."""
+    from calib_core.solve import gate, pnp
+
+    gate.ALPHA = pnp.ALPHA = alpha
+    gate.f_critical.__defaults__ = (alpha,)
+    gate.gate_test.__defaults__ = (alpha,)
+    print(f"gate family-wise false-alarm rate tried: {alpha:g}")
 
 
 def _use_t_reference(nu: int) -> None:
