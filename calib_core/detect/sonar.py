@@ -44,15 +44,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from scipy.spatial import cKDTree
-
-from calib_core.detect.sonar_fit import MAD_TO_SIGMA, FitResult, angle_to_axis_rad, cone_residuals, fit_sphere
+from calib_core.detect.sonar_fit import FitResult, angle_to_axis_rad, cone_residuals, fit_sphere
+from calib_core.detect.sonar_outline import attached_sectors, attached_span, roughness_m
 from calib_core.detect.sonar_search import (
     Candidate,
     disc_coverage,
     find_candidates,
     crop_ball,
-    polar_about,
     start_center,
 )
 from calib_core.detect.types import SonarDetection
@@ -74,6 +72,7 @@ MAX_RING_SECTORS = 10  # of 16 around the outline continued by a surface: a cap 
 # makes it "a sphere of another size" (a decoy, or a wrong diameter): reported, never used,
 # unless an operator picked it (then fitted with the diameter it shows, with a warning)
 DIAMETER_TOL = 0.15
+SIZE_GATE = 0.5  # radii from the known-radius sphere: returns further off do not measure its size
 DIAMETER_WARN = 0.06  # relative: above it a found sphere carries a warning
 CLEAR_WINNER = 3.0  # score ratio above which the best of two same-size candidates is taken
 MODEL_FLOOR_BEAM_FRACTION = 0.02  # 1-sigma model error per axis, as a fraction of range x beam width
@@ -95,47 +94,9 @@ class _Judged:
     radius_fit_m: float = float("nan")  # radius of ``fit``: the session's, or the one seen
 
 
-def _roughness_m(ranges_m: np.ndarray, dirs: np.ndarray, k: int = 8) -> float:
-    """Model-free range noise scale (m): robust spread of each range about the median range of
-    its ``k`` angular neighbours (smooth surfaces cancel; about 1.2 x the range noise)."""
-    if len(ranges_m) <= k:
-        return float("nan")
-    _, nb = cKDTree(dirs).query(dirs, k=k + 1)
-    return float(MAD_TO_SIGMA * np.median(np.abs(ranges_m - np.median(ranges_m[nb[:, 1:]], axis=1))))
-
-
 def _max_sigma(radius: float, noise_m: float) -> float:
     """Largest residual scale (m) a sphere of ``radius`` may show (see MAX_SIGMA_REL)."""
     return max(MAX_SIGMA_REL * radius, 2.0 * noise_m + 0.002 if np.isfinite(noise_m) else 0.0)
-
-
-def _attached_span(R, D, c, radius: float, alpha: float, h: float, noise_m: float) -> int:
-    """Over how many of 16 directions around the sphere's outline (one contiguous arc, the
-    shortest that holds them all) something continues it: returns just outside the outline
-    at or in front of the limb's range. A real sphere's outline is a depth step: what lies
-    behind it (a chair's back, a wall, a person) does not count; what holds it (a seat, a
-    table, a stick, a stand) touches it along one arc. A cap of a larger surface (a boulder,
-    a dome) is continued all round, a pile or a pipe on opposite sides: a long arc."""
-    cn = float(np.linalg.norm(c))
-    limb = float(np.sqrt(max(cn * cn - radius * radius, 0.0)))
-    tol = max(0.3 * radius, 4.0 * noise_m if np.isfinite(noise_m) else 0.0)
-    theta, ang = polar_about(D, c / cn)
-    sel = (theta > alpha * 1.05) & (theta <= alpha * 1.05 + max(0.5 * alpha, 2 * h))
-    sector = (ang[sel] / (2 * np.pi) * 16).astype(int) % 16
-    front = R[sel] < limb + tol
-    n_all = np.bincount(sector, minlength=16)
-    n_front = np.bincount(sector[front], minlength=16)
-    # a sector is attached when most of its returns continue the limb (flying pixels between
-    # a ball's edge and the background are a minority)
-    att = (n_front >= 2) & (n_front >= 0.5 * n_all)
-    if not att.any():
-        return 0
-    free = np.r_[~att, ~att]
-    gap, run = 0, 0
-    for f in free:  # longest circular run of free sectors
-        run = run + 1 if f else 0
-        gap = max(gap, min(run, 16))
-    return 16 - gap
 
 
 def _assess(X, R, D, fit: FitResult, radius: float, h: float, seeded: bool, noise_m: float):
@@ -154,8 +115,8 @@ def _assess(X, R, D, fit: FitResult, radius: float, h: float, seeded: bool, nois
     sampled = disc_coverage(D[in_disc], c / cn, alpha)
     coverage = disc_coverage(D[inl], c / cn, alpha) / max(sampled, 1.0 / 12)
     sig = fit.sigma_m
-    rough = _roughness_m(R[in_disc], D[in_disc])
-    ring = _attached_span(R, D, c, radius, alpha, h, noise_m)
+    rough = roughness_m(R[in_disc], D[in_disc])
+    ring = attached_span(attached_sectors(R, D, c, radius, alpha, h, noise_m))
     problem = ""
     if n_in < MIN_INLIERS:
         problem = f"too few returns on the sphere ({n_in})"
@@ -214,10 +175,15 @@ def _crop(P: np.ndarray, cand: Candidate, r: float, h: float):
 
 def _size_seen(X, D, fit: FitResult, r: float, h: float) -> tuple[float, float]:
     """(radius, its standard deviation) the cone model supports: free radius, robustly, on the
-    returns inside the disc of the known-radius fit (its chain, stick or stand lies outside).
-    NaNs if no fit."""
+    returns inside the disc of the known-radius fit (its chain, stick or stand lies outside)
+    that lie within SIZE_GATE radii of its surface (a block, a hand or a seat edge in front of
+    part of the ball is not), NaNs if no fit."""
     cn = float(np.linalg.norm(fit.center_m))
     disc = angle_to_axis_rad(D, fit.center_m / cn) <= 1.05 * (np.arcsin(r / cn) + h)
+    ra, _ = cone_residuals(fit.center_m, r, np.linalg.norm(X, axis=1), D, h)
+    near = disc & (np.abs(ra) <= SIZE_GATE * r)
+    if near.sum() >= MIN_INLIERS:
+        disc = near
     fine = fit_sphere(X[disc], fit.center_m, r, model="cone", free_radius=True,
                       half_angle_rad=h, sigma0_m=max(fit.sigma_m, 1e-3))
     if not fine.ok:

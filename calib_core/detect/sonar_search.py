@@ -319,63 +319,77 @@ def find_candidates(points_m: np.ndarray, radius_m: float, half_angle_rad: float
     Qk = Q[keep]
     labels = cluster_points(Qk, 2.2 * voxel)
     ids, counts = np.unique(labels, return_counts=True)
-    order = np.argsort(-counts)
     cands: list[Candidate] = []
-    min_vox = 6
-    for cid in ids[order]:
+    for cid in ids[np.argsort(-counts)]:
         X = Qk[labels == cid]
-        if len(X) < min_vox:
+        if len(X) < MIN_VOXELS:
             break
-        ext = np.ptp(X, axis=0).max()
-        if ext < 0.6 * r:
-            continue
-        if ext > 3.0 * r and len(X) >= 3 * LOCAL_PLANE_MIN:
-            X = _without_local_planes(X, r, voxel, rng)
-        for _attempt in range(min(6, 2 + len(X) // 200)):  # big clusters hide more
-            rng_c = float(np.linalg.norm(X.mean(axis=0)))
-            bloom = rng_c * np.tan(half_angle_rad)
-            thr = max(0.2 * r, 0.75 * voxel)
-            found = ransac_sphere(X, 0.6 * r, 1.5 * r + 2.0 * bloom + 0.01, thr,
-                                  2.5 * r + bloom, rng, n_hyp=96,
-                                  r_pref=r + bloom, r_pref_sd=0.25 * r)
-            if found is None:
-                break
-            c, rf, inl = found
-            if inl.sum() >= 8:  # closed-form refit on the RANSAC shell
-                c2, r2 = algebraic_sphere(X[inl])
-                if np.isfinite(r2) and np.linalg.norm(c2 - c) < 0.5 * r:
-                    c, rf = c2, r2
-            d = np.linalg.norm(X - c, axis=1)
-            shell = np.abs(d - rf) < thr
-            ball = d < rf + thr
-            support = int(shell.sum())
-            purity = support / max(int(ball.sum()), 1)
-            # a cap spreads in two directions; a chain or rope is a line
-            ev = np.linalg.eigvalsh(np.cov(X[shell].T)) if support >= 3 else np.zeros(3)
-            flat_ok = np.sqrt(max(ev[1], 0.0)) >= 0.2 * r
-            cn = float(np.linalg.norm(c))
-            cov_ok = flat_ok and cn > rf and disc_coverage(
-                X[shell] / np.linalg.norm(X[shell], axis=1)[:, None], c / cn,
-                float(np.arcsin(min(rf / cn, 1.0))) + half_angle_rad) >= 0.4
-            if support >= min_vox and cov_ok and 0.6 * r <= rf <= 1.5 * r + 2 * bloom + 0.01:
-                # ranking: support (saturating), purity, and the radius a blooming sphere of
-                # the nominal size would show (about r + range * tan(h))
-                r_exp = r + cn * np.tan(half_angle_rad)
-                quality = (min(1.0, support / 20.0) * purity
-                           * float(np.exp(-0.5 * ((rf - r_exp) / (0.2 * r)) ** 2)))
-                cands.append(Candidate(np.asarray(c, float), float(rf), support, float(purity),
-                                       int(cid), float(quality)))
-            X = X[~(ball | shell)]
-            if len(X) < 3 * min_vox:  # a second sphere in the same cluster needs some room
-                break
+        if np.ptp(X, axis=0).max() >= 0.6 * r:
+            cands += _cluster_candidates(X, int(cid), r, half_angle_rad, voxel, rng)
     cands.sort(key=lambda k: -k.quality)
-    info["n_clusters"] = int((counts >= min_vox).sum())
+    info["n_clusters"] = int((counts >= MIN_VOXELS).sum())
     info["n_coarse_candidates"] = len(cands)
     cands = _dedupe(cands, r)[:max_candidates]
     if cands:
         cands = prescreen(P, cands, r, half_angle_rad, info["noise_m"])
         info["n_prescreened"] = len(cands)
     return cands, info
+
+
+MIN_VOXELS = 6  # of a cluster, and on a candidate's shell
+
+
+def _cluster_candidates(X: np.ndarray, cid: int, r: float, h: float, voxel: float,
+                        rng: np.random.Generator) -> list[Candidate]:
+    """Sphere candidates in one cluster of voxels: RANSAC, take the shell out, look again (a
+    big cluster, a ball with the block, chair or person it touches, hides more than one)."""
+    if np.ptp(X, axis=0).max() > 3.0 * r and len(X) >= 3 * LOCAL_PLANE_MIN:
+        X = _without_local_planes(X, r, voxel, rng)
+    out = []
+    bloom = float(np.linalg.norm(X.mean(axis=0))) * np.tan(h)
+    thr = max(0.2 * r, 0.75 * voxel)
+    r_hi = 1.5 * r + 2.0 * bloom + 0.01
+    for _attempt in range(min(8, 2 + len(X) // 60)):
+        found = ransac_sphere(X, 0.6 * r, r_hi, thr, 2.5 * r + bloom, rng, n_hyp=96,
+                              r_pref=r + bloom, r_pref_sd=0.25 * r)
+        if found is None:
+            break
+        c, rf, inl = found
+        if inl.sum() >= 8:  # closed-form refit on the RANSAC shell
+            c2, r2 = algebraic_sphere(X[inl])
+            if np.isfinite(r2) and np.linalg.norm(c2 - c) < 0.5 * r:
+                c, rf = c2, r2
+        d = np.linalg.norm(X - c, axis=1)
+        shell, ball = np.abs(d - rf) < thr, d < rf + thr
+        cand = _candidate(X, shell, ball, c, rf, cid, r, h, r_hi)
+        if cand is not None:
+            out.append(cand)
+        X = X[~(ball | shell)]
+        if len(X) < 3 * MIN_VOXELS:  # a second sphere in the same cluster needs some room
+            break
+    return out
+
+
+def _candidate(X, shell, ball, c, rf: float, cid: int, r: float, h: float, r_hi: float):
+    """The Candidate of a RANSAC sphere (centre ``c``, radius ``rf``, its shell and ball masks
+    over the cluster ``X``) when its shell is a cap seen from the sensor, else None."""
+    support = int(shell.sum())
+    purity = support / max(int(ball.sum()), 1)
+    # a cap spreads in two directions; a chain or rope is a line
+    ev = np.linalg.eigvalsh(np.cov(X[shell].T)) if support >= 3 else np.zeros(3)
+    cn = float(np.linalg.norm(c))
+    if (support < MIN_VOXELS or np.sqrt(max(ev[1], 0.0)) < 0.2 * r or cn <= rf
+            or not 0.6 * r <= rf <= r_hi):
+        return None
+    S = X[shell]
+    if disc_coverage(S / np.linalg.norm(S, axis=1)[:, None], c / cn,
+                     float(np.arcsin(min(rf / cn, 1.0))) + h) < 0.4:
+        return None
+    # ranking: support (saturating), purity, and the radius a blooming sphere of the nominal
+    # size would show (about r + range * tan(h))
+    r_exp = r + cn * np.tan(h)
+    quality = min(1.0, support / 20.0) * purity * float(np.exp(-0.5 * ((rf - r_exp) / (0.2 * r)) ** 2))
+    return Candidate(np.asarray(c, float), float(rf), support, float(purity), cid, float(quality))
 
 
 LOCAL_PLANE_MIN = 20  # voxels of a plane inside one cluster (a table top seen at a grazing angle)
