@@ -292,20 +292,25 @@ def _restart(Xq, start, r, h, quick: FitResult) -> FitResult:
         c = cost(f)
         if c < best_cost:
             best, best_cost = f, c
-    return best
+    if best is quick:
+        return quick
+    # the starts ran one robust round each: the winner gets the trimmed round too
+    fine = fit_sphere(Xq, best.center_m, r, model="cone", half_angle_rad=h, sigma0_m=0.01, n_rounds=2)
+    return fine if cost(fine) <= best_cost else best
 
 
 def _restarts(Xq, R, D, start, r, h):
-    """First looks from six starts a quarter radius off the coarse centre, then one on only
-    the returns inside the start's disc (a block or seat the ball rests on, seen below or
-    beside it, can outnumber the ball's returns in the crop and drag every fit into it)."""
+    """First looks (one robust round each) from six starts a quarter radius off the coarse
+    centre, then one on only the returns inside the start's disc (a block or seat the ball
+    rests on, seen below or beside it, can outnumber the ball's returns in the crop and drag
+    every fit into it)."""
     for step in np.vstack([np.eye(3), -np.eye(3)]) * 0.25 * r:
-        yield fit_sphere(Xq, start + step, r, model="cone", half_angle_rad=h, sigma0_m=0.01, n_rounds=2)
+        yield fit_sphere(Xq, start + step, r, model="cone", half_angle_rad=h, sigma0_m=0.01, n_rounds=1)
     sn = float(np.linalg.norm(start))
     disc = angle_to_axis_rad(D, start / sn) <= np.arcsin(min(r / sn, 1.0)) + h
     if disc.sum() >= MIN_INLIERS:
         yield fit_sphere(Xq[disc], start, r, model="cone", half_angle_rad=h, sigma0_m=0.01,
-                         n_rounds=2, loss="cauchy")
+                         n_rounds=1, loss="cauchy")
 
 
 def _as_other_size(X, R, D, look: _FirstLook, fit: FitResult, r, h, seeded, noise_m):
