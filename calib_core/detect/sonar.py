@@ -73,6 +73,7 @@ MAX_RING_SECTORS = 10  # of 16 around the outline continued by a surface: a cap 
 # unless an operator picked it (then fitted with the diameter it shows, with a warning)
 DIAMETER_TOL = 0.15
 SIZE_GATE = 0.5  # radii from the known-radius sphere: returns further off do not measure its size
+SIZE_SYSTEMATIC = 0.03  # relative: how far off a sensor may see a sphere's size (see _Judged.evidence)
 DIAMETER_WARN = 0.06  # relative: above it a found sphere carries a warning
 CLEAR_WINNER = 3.0  # score ratio above which the best of two same-size candidates is taken
 MODEL_FLOOR_BEAM_FRACTION = 0.02  # 1-sigma model error per axis, as a fraction of range x beam width
@@ -92,6 +93,21 @@ class _Judged:
     score: float
     problem: str  # "" when acceptable
     radius_fit_m: float = float("nan")  # radius of ``fit``: the session's, or the one seen
+    radius_sd_m: float = float("nan")  # standard deviation of radius_cone_m
+
+    def evidence(self, r: float, noise_m: float) -> float:
+        """The score weighed by how well the size seen agrees with ``r`` given how precisely it
+        was measured (plus SIZE_SYSTEMATIC of it: sensors see sizes a few % off), and by how
+        much more the returns scatter about the fit than the sensor's range noise ``noise_m``
+        (NaN: not known): what tells the ball from a round thing of about its size nearby (a
+        person's shoulders or head, the top of a post)."""
+        e = self.score
+        if np.isfinite(self.radius_cone_m) and np.isfinite(self.radius_sd_m):
+            z = (self.radius_cone_m - r) / np.hypot(self.radius_sd_m, SIZE_SYSTEMATIC * r)
+            e *= float(np.exp(-0.5 * z * z))
+        if np.isfinite(noise_m) and self.fit is not None and self.fit.sigma_m > 0:
+            e *= min(1.0, ((noise_m + 0.001) / self.fit.sigma_m) ** 2)
+        return e
 
 
 def _max_sigma(radius: float, noise_m: float) -> float:
@@ -241,7 +257,8 @@ def _judge(P: np.ndarray, cand: Candidate, r: float, h: float, seeded: bool,
                             and (r_fit != r or abs(r_cone - r) <= tol)):
         problem = size_problem(r_cone, r)
     return _Judged(cand, idx, idx_j, fit, float(r_cone), coverage, purity,
-                   _score(coverage, purity, r_cone, r, fit.sigma_m), problem, r_fit)
+                   _score(coverage, purity, r_cone, r, fit.sigma_m), problem, r_fit,
+                   float(sd) if r_fit == r else float("nan"))
 
 
 def _first_look(X, start, r, h, noise_m, bad: _Judged) -> _FirstLook | None:
@@ -404,11 +421,12 @@ def detect_sphere_in_cloud(points_sonar_m: np.ndarray, sphere_radius_m: float,
         return _not_found(f"no sphere-like cluster (best candidate, {at:.2f} m away: {why})",
                           method, n_points=n_all, n_candidates=len(judged))
     extras: dict = {}
-    nominal = [j for j in good if j.radius_fit_m == r]
+    noise = info["noise_m"]
+    nominal = sorted((j for j in good if j.radius_fit_m == r), key=lambda j: -j.evidence(r, noise))
     other = [j for j in good if j.radius_fit_m != r]
     if seed is not None:  # the operator's pick decides, whatever its size
         chosen = min(good, key=lambda j: np.linalg.norm(j.fit.center_m - seed))
-    elif len(nominal) > 1 and nominal[0].score < CLEAR_WINNER * nominal[1].score:
+    elif len(nominal) > 1 and nominal[0].evidence(r, noise) < CLEAR_WINNER * nominal[1].evidence(r, noise):
         at = " and ".join(f"{np.linalg.norm(k.fit.center_m):.2f} m" for k in nominal[:3])
         pos = "; ".join(str(np.round(k.fit.center_m, 3).tolist()) for k in nominal[:3])
         return _not_found(f"two candidates: round objects of the sphere's size at {at} "

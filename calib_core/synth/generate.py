@@ -23,7 +23,7 @@ from calib_core.synth.camera_render import RenderOptions, finish_image, render_r
 from calib_core.synth.drift import drift_positions, write_drift_frames
 from calib_core.synth.ground_truth import GT_FILE, GT_FORMAT, to_list
 from calib_core.synth.occlusion import MAX_OCCLUDED_FRACTION, occluded_fraction
-from calib_core.synth.presets import get_preset
+from calib_core.synth.presets import for_seed, get_preset
 from calib_core.synth.range_capture import in_field, sensor_config, simulate_range
 from calib_core.synth.rig import sample_in_sensor_view, sample_rig, sample_target_center, silhouette_uv, sphere_in_image
 from calib_core.synth.scene import Scene
@@ -42,6 +42,7 @@ def generate_session(out_dir, preset, seed: int, progress=None, **overrides) -> 
     Returns the session folder. Raises KeyError for an unknown preset name.
     """
     P = get_preset(preset).with_(**overrides) if overrides else get_preset(preset)
+    P = for_seed(P, seed)
     out = Path(out_dir)
     ss = np.random.SeedSequence([int(seed), 7919])
     r_rig, r_scene, r_noise, r_sonar = (np.random.default_rng(s) for s in ss.spawn(4))
@@ -260,6 +261,8 @@ def _holder_heights(holder: str, rig, radius: float, base_z: float) -> tuple:
     the top of what the sphere rests on sees the top hide it; a chair's seat is narrower
     than the ball, so the occlusion test alone decides there)."""
     lo = base_z + (0.5 if holder == "stick" else 0.3) + radius
+    if holder == "hand":  # held out at arm's length by a person standing on the floor
+        return base_z + 0.6, base_z + 1.5
     if holder in ("stick", "chair"):
         return lo, np.inf
     return lo, min(T[2, 3] for _, T in rig.cams.values()) - 0.05 + radius
@@ -282,7 +285,8 @@ class _HolderCheck:
         parts = range_scenes.holder_parts(r_cap, self.P.holder, c, self.radius, self.base_z,
                                           self.rig.T_world_sonar[:3, 3])
         scene = Scene((ball, *parts))
-        return all(occluded_fraction(scene, 0, T_wc, c, self.radius) < MAX_OCCLUDED_FRACTION
+        limit = range_scenes.MAX_OCCLUDED.get(self.P.holder, MAX_OCCLUDED_FRACTION)
+        return all(occluded_fraction(scene, 0, T_wc, c, self.radius) < limit
                    for _, T_wc in self.rig.cams.values())
 
 
