@@ -391,18 +391,16 @@ def detect_sphere_in_cloud(points_sonar_m: np.ndarray, sphere_radius_m: float,
         return _not_found("empty cloud", method, n_points=0)
     if n_all < MIN_POINTS:
         return _not_found(f"too few points ({n_all} < {MIN_POINTS})", method, n_points=n_all)
-    rng = np.random.default_rng(rng_seed)
+    seed = None if seed_center_m is None else np.asarray(seed_center_m, float).reshape(3)
     base = None  # indices of the working cloud in the input (None: all of it)
-    seed = None
-    if seed_center_m is not None:
-        seed = np.asarray(seed_center_m, float).reshape(3)
+    if seed is not None:
         reach = float(seed_radius_m) + 2.0 * r + float(np.linalg.norm(seed)) * np.tan(h) + 0.05
         base = crop_ball(P, seed, reach)
         if len(base) < MIN_POINTS:
             return _not_found(f"too few points near the picked point ({len(base)})", method,
                               n_points=n_all)
     W = P if base is None else P[base]
-    cands, info = find_candidates(W, r, h, rng, max_candidates=MAX_JUDGED)
+    cands, info = find_candidates(W, r, h, np.random.default_rng(rng_seed), max_candidates=MAX_JUDGED)
     if not cands:
         return _not_found("no sphere-like cluster", method, n_points=n_all,
                           n_clusters=int(info.get("n_clusters", 0)))
@@ -412,40 +410,48 @@ def detect_sphere_in_cloud(points_sonar_m: np.ndarray, sphere_radius_m: float,
         if not cands:
             return _not_found("nothing sphere-like near the picked point", method, n_points=n_all)
     judged = [_judge(W, k, r, h, seed is not None, info["noise_m"]) for k in cands[:MAX_FULL]]
-    good = [j for j in judged if not j.problem]
-    good = _dedupe(good, r)
+    chosen, extras = _choose(judged, r, seed, info["noise_m"])
+    if chosen is None:
+        reason = extras.pop("reason")
+        return _not_found(reason, method, n_points=n_all, **extras)
+    return _finish(P, W, base, chosen, r, h, method, n_all, info, extras)
+
+
+def _choose(judged: list[_Judged], r: float, seed, noise_m: float) -> tuple[_Judged | None, dict]:
+    """The candidate to use and the detection's extras, or (None, extras with a ``reason``):
+    the operator's pick decides when there is one; else one candidate of the session's size
+    (a second one is tolerated when the first has CLEAR_WINNER times its evidence)."""
+    good = _dedupe([j for j in judged if not j.problem], r)
     if not good:
         best = max(judged, key=lambda j: j.score)
         why = best.problem or "no sphere-like cluster"
         at = float(np.linalg.norm(best.cand.center_m))
-        return _not_found(f"no sphere-like cluster (best candidate, {at:.2f} m away: {why})",
-                          method, n_points=n_all, n_candidates=len(judged))
-    extras: dict = {}
-    noise = info["noise_m"]
-    nominal = sorted((j for j in good if j.radius_fit_m == r), key=lambda j: -j.evidence(r, noise))
+        return None, {"reason": f"no sphere-like cluster (best candidate, {at:.2f} m away: {why})",
+                      "n_candidates": len(judged)}
+    nominal = sorted((j for j in good if j.radius_fit_m == r), key=lambda j: -j.evidence(r, noise_m))
     other = [j for j in good if j.radius_fit_m != r]
     if seed is not None:  # the operator's pick decides, whatever its size
-        chosen = min(good, key=lambda j: np.linalg.norm(j.fit.center_m - seed))
-    elif len(nominal) > 1 and nominal[0].evidence(r, noise) < CLEAR_WINNER * nominal[1].evidence(r, noise):
+        return min(good, key=lambda j: np.linalg.norm(j.fit.center_m - seed)), {}
+    if len(nominal) > 1 and nominal[0].evidence(r, noise_m) < CLEAR_WINNER * nominal[1].evidence(r, noise_m):
         at = " and ".join(f"{np.linalg.norm(k.fit.center_m):.2f} m" for k in nominal[:3])
         pos = "; ".join(str(np.round(k.fit.center_m, 3).tolist()) for k in nominal[:3])
-        return _not_found(f"two candidates: round objects of the sphere's size at {at} "
-                          f"(centres {pos} m)", method, n_points=n_all, n_candidates=len(good))
-    elif not nominal:  # sphere-like, but not of session.yaml's size: a decoy or a wrong diameter
+        return None, {"reason": f"two candidates: round objects of the sphere's size at {at} "
+                                f"(centres {pos} m)", "n_candidates": len(good)}
+    if not nominal:  # sphere-like, but not of session.yaml's size: a decoy or a wrong diameter
         k = max(other, key=lambda j: j.score)
-        return _not_found(
-            f"only a sphere of another size: seen {2 * k.radius_cone_m:.3f} m across, session.yaml "
-            f"says {2 * r:.3f} m (check the diameter, or pick the sphere by hand)", method,
-            n_points=n_all, candidate_center=[round(float(v), 4) for v in k.fit.center_m],
-            candidate_diameter_m=round(2 * k.radius_cone_m, 3))
-    else:
-        chosen = nominal[0]
-        if len(nominal) > 1:  # a clear winner: say what else was seen
-            extras["warning"] = (f"another round object at {np.linalg.norm(nominal[1].fit.center_m):.2f} m "
-                                 f"scored {nominal[1].score:.2f} against {chosen.score:.2f}")
-        if other:
-            extras["ignored_other_sizes_m"] = [round(2 * k.radius_cone_m, 4) for k in other]
-    return _finish(P, W, base, chosen, r, h, method, n_all, info, extras)
+        return None, {"reason": f"only a sphere of another size: seen {2 * k.radius_cone_m:.3f} m across, "
+                                f"session.yaml says {2 * r:.3f} m (check the diameter, or pick the sphere by hand)",
+                      "candidate_center": [round(float(v), 4) for v in k.fit.center_m],
+                      "candidate_diameter_m": round(2 * k.radius_cone_m, 3)}
+    chosen, extras = nominal[0], {}
+    if len(nominal) > 1:  # a clear winner: say what else was seen
+        k = nominal[1]
+        seen = f", seen {2 * k.radius_cone_m:.2f} m across" if np.isfinite(k.radius_cone_m) else ""
+        extras["warning"] = (f"another round object at {np.linalg.norm(k.fit.center_m):.2f} m{seen} "
+                             f"scored {k.score:.2f} against {chosen.score:.2f}")
+    if other:
+        extras["ignored_other_sizes_m"] = [round(2 * k.radius_cone_m, 4) for k in other]
+    return chosen, extras
 
 
 def _dedupe(judged: list[_Judged], r: float) -> list[_Judged]:
@@ -458,28 +464,10 @@ def _dedupe(judged: list[_Judged], r: float) -> list[_Judged]:
 
 def _finish(P, W, base, j: _Judged, r, h, method, n_all, info, extras) -> SonarDetection:
     """Method-specific final fit on the chosen candidate's crop; assemble the detection."""
-    X = W[j.idx]
-    Xj = X[j.idx_j]
-    cone = j.fit
-    other_size = j.radius_fit_m != r
-    if len(Xj) < len(X):  # refine on every point of the crop
-        cone = fit_sphere(X, cone.center_m, j.radius_fit_m, model="cone", half_angle_rad=h,
-                          free_radius=other_size, sigma0_m=cone.sigma_m, n_rounds=3, warm=True)
-        if not cone.ok:
-            return _not_found("sphere fit did not converge", method, n_points=n_all)
-    apparent = fit_sphere(Xj, cone.center_m, r, model="euclid", free_radius=True,
-                          sigma0_m=max(cone.sigma_m, 2e-3))
-    if method == "cone-model":
-        fit = cone
-    elif method == "known-radius":
-        fit = fit_sphere(X, cone.center_m, r, model="euclid", sigma0_m=max(cone.sigma_m, 2e-3))
-    elif len(Xj) == len(X):
-        fit = apparent
-    else:
-        fit = fit_sphere(X, apparent.center_m, apparent.radius_m, model="euclid",
-                         free_radius=True, sigma0_m=apparent.sigma_m, n_rounds=2, warm=True)
-    if not fit.ok:
+    fits = _final_fits(W[j.idx], j, r, h, method)
+    if fits is None:
         return _not_found("sphere fit did not converge", method, n_points=n_all)
+    fit, cone, apparent = fits
     mask = np.zeros(n_all, bool)
     sel = j.idx[fit.inliers]
     mask[sel if base is None else base[sel]] = True
@@ -492,16 +480,7 @@ def _finish(P, W, base, j: _Judged, r, h, method, n_all, info, extras) -> SonarD
         "planes_removed": int(info.get("planes_removed", 0)),
         "plane_noise_m": round(float(info["noise_m"]), 5) if np.isfinite(info["noise_m"]) else None,
     })
-    size_note = ""
-    seen = f"sphere seen {2 * j.radius_cone_m:.3f} m across, session.yaml says {2 * r:.3f} m"
-    if other_size:
-        size_note = seen
-    elif np.isfinite(j.radius_cone_m) and abs(j.radius_cone_m - r) > DIAMETER_WARN * r:
-        size_note = seen + ": check the diameter or the beam width (sonar_beam.estimate_beam_width_deg)"
-    if size_note:
-        extras["warning"] = "; ".join(w for w in (extras.get("warning"), size_note) if w)
-    if other_size and method == "cone-model":
-        extras["fitted_with_diameter_m"] = round(2 * cone.radius_m, 4)
+    _size_notes(extras, j, r, cone, method)
     return SonarDetection(
         found=True,
         center_sonar_m=np.asarray(fit.center_m, float),
@@ -516,3 +495,43 @@ def _finish(P, W, base, j: _Judged, r, h, method, n_all, info, extras) -> SonarD
         inlier_mask=mask,
         extras=extras,
     )
+
+
+def _final_fits(X, j: _Judged, r, h, method):
+    """(the method's fit, the cone-model fit, the free-radius Euclidean fit) on the crop ``X``
+    of the chosen candidate, or None when a fit the method needs fails."""
+    Xj = X[j.idx_j]
+    cone = j.fit
+    other_size = j.radius_fit_m != r
+    if len(Xj) < len(X):  # refine on every point of the crop
+        cone = fit_sphere(X, cone.center_m, j.radius_fit_m, model="cone", half_angle_rad=h,
+                          free_radius=other_size, sigma0_m=cone.sigma_m, n_rounds=3, warm=True)
+        if not cone.ok:
+            return None
+    apparent = fit_sphere(Xj, cone.center_m, r, model="euclid", free_radius=True,
+                          sigma0_m=max(cone.sigma_m, 2e-3))
+    if method == "cone-model":
+        fit = cone
+    elif method == "known-radius":
+        fit = fit_sphere(X, cone.center_m, r, model="euclid", sigma0_m=max(cone.sigma_m, 2e-3))
+    elif len(Xj) == len(X):
+        fit = apparent
+    else:
+        fit = fit_sphere(X, apparent.center_m, apparent.radius_m, model="euclid",
+                         free_radius=True, sigma0_m=apparent.sigma_m, n_rounds=2, warm=True)
+    return (fit, cone, apparent) if fit.ok else None
+
+
+def _size_notes(extras: dict, j: _Judged, r: float, cone: FitResult, method: str) -> None:
+    """Warn (in ``extras``) when the sphere was seen with another size than session.yaml's."""
+    other_size = j.radius_fit_m != r
+    seen = f"sphere seen {2 * j.radius_cone_m:.3f} m across, session.yaml says {2 * r:.3f} m"
+    size_note = ""
+    if other_size:
+        size_note = seen
+    elif np.isfinite(j.radius_cone_m) and abs(j.radius_cone_m - r) > DIAMETER_WARN * r:
+        size_note = seen + ": check the diameter or the beam width (sonar_beam.estimate_beam_width_deg)"
+    if size_note:
+        extras["warning"] = "; ".join(w for w in (extras.get("warning"), size_note) if w)
+    if other_size and method == "cone-model":
+        extras["fitted_with_diameter_m"] = round(2 * cone.radius_m, 4)

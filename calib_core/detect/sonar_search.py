@@ -95,38 +95,21 @@ def remove_planes(Q: np.ndarray, min_extent_m: float, thr_m: float, rng: np.rand
     keep = np.ones(len(Q), bool)
     tried = np.zeros(len(Q), bool)  # inliers of a plane that failed the checks: not sampled again
     planes = []
-    Qk = Q
     for _ in range(max_planes + MAX_FAILED_PLANES):
         if len(planes) >= max_planes:
             break
         idx = np.nonzero(keep & ~tried)[0]
-        Qk = Q[idx]
         if len(idx) < max(min_count, 10):
             break
-        S = Qk if len(idx) <= 2000 else Qk[rng.integers(0, len(idx), 2000)]
-        # half the triples anywhere, half among an anchor's 48 nearest (likelier coplanar)
-        k = min(48, len(S))
-        _, nb = cKDTree(S).query(S[rng.integers(0, len(S), n_hyp // 2)], k=k)
-        loc = np.take_along_axis(nb, np.c_[np.zeros(n_hyp // 2, int),
-                                           rng.integers(1, k, (n_hyp // 2, 2))], axis=1)
-        tri = S[np.vstack([rng.integers(0, len(S), (n_hyp - n_hyp // 2, 3)), loc])]
-        n, d, good = _plane_from_3(tri)
-        cnt = (np.abs(S @ n.T - d) < thr_m).sum(axis=0) * good
-        b = int(np.argmax(cnt))
-        if cnt[b] < max(min_count * len(S) / len(idx), min_frac * len(S)):
+        Qk = Q[idx]
+        hyp = _plane_hypothesis(Qk, thr_m, rng, n_hyp, max(min_count * min(len(idx), 2000) / len(idx),
+                                                             min_frac * min(len(idx), 2000)))
+        if hyp is None:
             break
-        nrm, off = n[b], d[b]
-        for _refit in range(2):  # PCA refit on the inliers
-            X = Qk[np.abs(Qk @ nrm - off) < thr_m]
-            if len(X) < 3:
-                break
-            mu = X.mean(axis=0)
-            Xc = X - mu
-            ev, evec = np.linalg.eigh(Xc.T @ Xc / len(X))  # ascending: normal first
-            nrm, off = evec[:, 0], float(mu @ evec[:, 0])
+        nrm, off, ev, evec = _refit_plane(Qk, *hyp, thr_m)
         dist = np.abs(Qk @ nrm - off)
-        sd = 1.4826 * float(np.median(dist[dist < thr_m])) if (dist < thr_m).any() else thr_m
         on = dist < thr_m
+        sd = 1.4826 * float(np.median(dist[on])) if on.any() else thr_m
         inl = idx[on]
         spread = 4.0 * np.sqrt(np.maximum(ev[[2, 1]], 0.0))
         density = len(inl) * thr_m * thr_m / max(spread[0] * spread[1], 1e-12)
@@ -140,6 +123,38 @@ def remove_planes(Q: np.ndarray, min_extent_m: float, thr_m: float, rng: np.rand
         keep[inl] = False
         planes.append((nrm, off, int(len(inl))))
     return keep, planes
+
+
+def _plane_hypothesis(Qk: np.ndarray, thr_m: float, rng: np.random.Generator, n_hyp: int,
+                      min_support: float):
+    """(normal, offset) of the best of ``n_hyp`` planes through random triples of (at most 2000
+    of) the voxels ``Qk``, half anywhere, half among an anchor's 48 nearest (likelier coplanar);
+    None when the best holds fewer than ``min_support`` of the sampled voxels within ``thr_m``."""
+    S = Qk if len(Qk) <= 2000 else Qk[rng.integers(0, len(Qk), 2000)]
+    k = min(48, len(S))
+    _, nb = cKDTree(S).query(S[rng.integers(0, len(S), n_hyp // 2)], k=k)
+    loc = np.take_along_axis(nb, np.c_[np.zeros(n_hyp // 2, int),
+                                       rng.integers(1, k, (n_hyp // 2, 2))], axis=1)
+    tri = S[np.vstack([rng.integers(0, len(S), (n_hyp - n_hyp // 2, 3)), loc])]
+    n, d, good = _plane_from_3(tri)
+    cnt = (np.abs(S @ n.T - d) < thr_m).sum(axis=0) * good
+    b = int(np.argmax(cnt))
+    return None if cnt[b] < min_support else (n[b], d[b])
+
+
+def _refit_plane(Qk: np.ndarray, nrm, off, thr_m: float):
+    """(normal, offset, eigenvalues ascending, eigenvectors) after two PCA refits on the voxels
+    within ``thr_m`` of the plane."""
+    ev, evec = np.zeros(3), np.eye(3)
+    for _refit in range(2):
+        X = Qk[np.abs(Qk @ nrm - off) < thr_m]
+        if len(X) < 3:
+            break
+        mu = X.mean(axis=0)
+        Xc = X - mu
+        ev, evec = np.linalg.eigh(Xc.T @ Xc / len(X))  # ascending: normal first
+        nrm, off = evec[:, 0], float(mu @ evec[:, 0])
+    return nrm, off, ev, evec
 
 
 def _plane_pieces(Q: np.ndarray, inl: np.ndarray, axes: np.ndarray, thr_m: float,
