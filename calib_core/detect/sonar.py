@@ -392,13 +392,9 @@ def detect_sphere_in_cloud(points_sonar_m: np.ndarray, sphere_radius_m: float,
     if n_all < MIN_POINTS:
         return _not_found(f"too few points ({n_all} < {MIN_POINTS})", method, n_points=n_all)
     seed = None if seed_center_m is None else np.asarray(seed_center_m, float).reshape(3)
-    base = None  # indices of the working cloud in the input (None: all of it)
-    if seed is not None:
-        reach = float(seed_radius_m) + 2.0 * r + float(np.linalg.norm(seed)) * np.tan(h) + 0.05
-        base = crop_ball(P, seed, reach)
-        if len(base) < MIN_POINTS:
-            return _not_found(f"too few points near the picked point ({len(base)})", method,
-                              n_points=n_all)
+    base = None if seed is None else _near_pick(P, seed, seed_radius_m, r, h)
+    if base is not None and len(base) < MIN_POINTS:
+        return _not_found(f"too few points near the picked point ({len(base)})", method, n_points=n_all)
     W = P if base is None else P[base]
     cands, info = find_candidates(W, r, h, np.random.default_rng(rng_seed), max_candidates=MAX_JUDGED)
     if not cands:
@@ -415,6 +411,12 @@ def detect_sphere_in_cloud(points_sonar_m: np.ndarray, sphere_radius_m: float,
         reason = extras.pop("reason")
         return _not_found(reason, method, n_points=n_all, **extras)
     return _finish(P, W, base, chosen, r, h, method, n_all, info, extras)
+
+
+def _near_pick(P, seed, seed_radius_m: float, r: float, h: float) -> np.ndarray:
+    """Indices of the points a sphere near an operator's pick can reach."""
+    reach = float(seed_radius_m) + 2.0 * r + float(np.linalg.norm(seed)) * np.tan(h) + 0.05
+    return crop_ball(P, seed, reach)
 
 
 def _choose(judged: list[_Judged], r: float, seed, noise_m: float) -> tuple[_Judged | None, dict]:
