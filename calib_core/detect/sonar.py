@@ -72,6 +72,7 @@ MAX_RING_SECTORS = 10  # of 16 around the outline continued by a surface: a cap 
 # makes it "a sphere of another size" (a decoy, or a wrong diameter): reported, never used,
 # unless an operator picked it (then fitted with the diameter it shows, with a warning)
 DIAMETER_TOL = 0.15
+ROUGH_NOISE = 1.3  # a first look scattered beyond this x the planes' noise (+2 mm) is tried from other starts
 SIZE_GATE = 0.5  # radii from the known-radius sphere: returns further off do not measure its size
 SIZE_SYSTEMATIC = 0.03  # relative: how far off a sensor may see a sphere's size (see _Judged.evidence)
 DIAMETER_WARN = 0.06  # relative: above it a found sphere carries a warning
@@ -270,7 +271,7 @@ def _first_look(X, start, r, h, noise_m, bad: _Judged) -> _FirstLook | None:
     quick = fit_sphere(Xq, start, r, model="cone", half_angle_rad=h, sigma0_m=0.01, n_rounds=2)
     look = _FirstLook(Xq, quick, r, h, noise_m)
     # scattered beyond the sensor noise: perhaps a basin that takes in what holds the ball
-    rough = np.isfinite(noise_m) and quick.ok and quick.sigma_m > 2.0 * noise_m + 0.002
+    rough = np.isfinite(noise_m) and quick.ok and quick.sigma_m > ROUGH_NOISE * noise_m + 0.002
     if rough or _hopeless(look, start):
         look = _FirstLook(Xq, _restart(Xq, start, r, h, quick), r, h, noise_m)
     bad.fit = look.quick
