@@ -51,6 +51,7 @@ from calib_core.detect.sonar_search import (
     disc_coverage,
     find_candidates,
     crop_ball,
+    noise_at,
     start_center,
 )
 from calib_core.detect.types import SonarDetection
@@ -95,19 +96,20 @@ class _Judged:
     problem: str  # "" when acceptable
     radius_fit_m: float = float("nan")  # radius of ``fit``: the session's, or the one seen
     radius_sd_m: float = float("nan")  # standard deviation of radius_cone_m
+    noise_m: float = float("nan")  # the sensor's range noise at the candidate (from the planes)
 
-    def evidence(self, r: float, noise_m: float) -> float:
+    def evidence(self, r: float) -> float:
         """The score weighed by how well the size seen agrees with ``r`` given how precisely it
         was measured (plus SIZE_SYSTEMATIC of it: sensors see sizes a few % off), and by how
-        much more the returns scatter about the fit than the sensor's range noise ``noise_m``
-        (NaN: not known): what tells the ball from a round thing of about its size nearby (a
+        much more the returns scatter about the fit than the sensor's range noise there
+        (``noise_m``, NaN: not known): what tells the ball from a round thing of about its size nearby (a
         person's shoulders or head, the top of a post)."""
         e = self.score
         if np.isfinite(self.radius_cone_m) and np.isfinite(self.radius_sd_m):
             z = (self.radius_cone_m - r) / np.hypot(self.radius_sd_m, SIZE_SYSTEMATIC * r)
             e *= float(np.exp(-0.5 * z * z))
-        if np.isfinite(noise_m) and self.fit is not None and self.fit.sigma_m > 0:
-            e *= min(1.0, ((noise_m + 0.001) / self.fit.sigma_m) ** 2)
+        if np.isfinite(self.noise_m) and self.fit is not None and self.fit.sigma_m > 0:
+            e *= min(1.0, ((self.noise_m + 0.001) / self.fit.sigma_m) ** 2)
         return e
 
 
@@ -259,7 +261,7 @@ def _judge(P: np.ndarray, cand: Candidate, r: float, h: float, seeded: bool,
         problem = size_problem(r_cone, r)
     return _Judged(cand, idx, idx_j, fit, float(r_cone), coverage, purity,
                    _score(coverage, purity, r_cone, r, fit.sigma_m), problem, r_fit,
-                   float(sd) if r_fit == r else float("nan"))
+                   float(sd) if r_fit == r else float("nan"), noise_m)
 
 
 def _first_look(X, start, r, h, noise_m, bad: _Judged) -> _FirstLook | None:
@@ -406,8 +408,9 @@ def detect_sphere_in_cloud(points_sonar_m: np.ndarray, sphere_radius_m: float,
         cands = [k for k in cands if np.linalg.norm(k.center_m - seed) < seed_radius_m + 2 * r]
         if not cands:
             return _not_found("nothing sphere-like near the picked point", method, n_points=n_all)
-    judged = [_judge(W, k, r, h, seed is not None, info["noise_m"]) for k in cands[:MAX_FULL]]
-    chosen, extras = _choose(judged, r, seed, info["noise_m"])
+    # the sensor's noise where each candidate is (a depth camera's grows with range)
+    judged = [_judge(W, k, r, h, seed is not None, _noise_near(info, k.center_m)) for k in cands[:MAX_FULL]]
+    chosen, extras = _choose(judged, r, seed)
     if chosen is None:
         reason = extras.pop("reason")
         return _not_found(reason, method, n_points=n_all, **extras)
@@ -420,7 +423,14 @@ def _near_pick(P, seed, seed_radius_m: float, r: float, h: float) -> np.ndarray:
     return crop_ball(P, seed, reach)
 
 
-def _choose(judged: list[_Judged], r: float, seed, noise_m: float) -> tuple[_Judged | None, dict]:
+def _noise_near(info: dict, center_m) -> float:
+    """The range noise the cloud's planes show at the candidate's range, never below the
+    planes' overall noise (NaN without planes)."""
+    at = noise_at(info["noise_model"], float(np.linalg.norm(center_m)))
+    return float(np.nanmax([at, info["noise_m"]])) if np.isfinite(info["noise_m"]) else float("nan")
+
+
+def _choose(judged: list[_Judged], r: float, seed) -> tuple[_Judged | None, dict]:
     """The candidate to use and the detection's extras, or (None, extras with a ``reason``):
     the operator's pick decides when there is one; else one candidate of the session's size
     (a second one is tolerated when the first has CLEAR_WINNER times its evidence)."""
@@ -431,11 +441,11 @@ def _choose(judged: list[_Judged], r: float, seed, noise_m: float) -> tuple[_Jud
         at = float(np.linalg.norm(best.cand.center_m))
         return None, {"reason": f"no sphere-like cluster (best candidate, {at:.2f} m away: {why})",
                       "n_candidates": len(judged)}
-    nominal = sorted((j for j in good if j.radius_fit_m == r), key=lambda j: -j.evidence(r, noise_m))
+    nominal = sorted((j for j in good if j.radius_fit_m == r), key=lambda j: -j.evidence(r))
     other = [j for j in good if j.radius_fit_m != r]
     if seed is not None:  # the operator's pick decides, whatever its size
         return min(good, key=lambda j: np.linalg.norm(j.fit.center_m - seed)), {}
-    if len(nominal) > 1 and nominal[0].evidence(r, noise_m) < CLEAR_WINNER * nominal[1].evidence(r, noise_m):
+    if len(nominal) > 1 and nominal[0].evidence(r) < CLEAR_WINNER * nominal[1].evidence(r):
         at = " and ".join(f"{np.linalg.norm(k.fit.center_m):.2f} m" for k in nominal[:3])
         pos = "; ".join(str(np.round(k.fit.center_m, 3).tolist()) for k in nominal[:3])
         return None, {"reason": f"two candidates: round objects of the sphere's size at {at} "

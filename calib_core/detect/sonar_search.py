@@ -187,24 +187,62 @@ def _plane_pieces(Q: np.ndarray, inl: np.ndarray, axes: np.ndarray, thr_m: float
 
 def plane_range_noise_m(points_m: np.ndarray, planes: list, thr_m: float,
                         rng: np.random.Generator, max_points: int = 20_000) -> float:
-    """Range noise scale (m) of the sonar, from the points on the removed planes: the robust
+    """Range noise scale (m) of the sensor, from the points on the removed planes: the robust
     spread of their distance to the plane converted to range (divided by the cosine of the
-    incidence). NaN without planes. A rough (non-flat) seabed makes it larger, never smaller."""
-    if not planes:
+    incidence). NaN without planes. A rough (non-flat) seabed makes it larger, never smaller.
+    (:func:`plane_noise_model` gives it as a function of range.)"""
+    res, _ = _plane_residuals(points_m, planes, thr_m, rng, max_points)
+    if len(res) < 50:
         return float("nan")
+    return float(1.4826 * np.median(np.abs(res - np.median(res))))
+
+
+def plane_noise_model(points_m: np.ndarray, planes: list, thr_m: float, rng: np.random.Generator,
+                      max_points: int = 20_000) -> tuple[float, float]:
+    """(a, b) of the range noise ``sigma(R) = sqrt(a^2 + (b R^2)^2)`` (m) measured on the removed
+    planes in range bins: constant for a sonar or a LiDAR, growing with the square of the
+    range for a depth camera. NaNs without planes."""
+    from scipy.optimize import nnls
+
+    res, rr = _plane_residuals(points_m, planes, thr_m, rng, max_points)
+    if len(res) < 50:
+        return float("nan"), float("nan")
+    n_bins = int(np.clip(len(res) // 200, 1, 6))
+    edges = np.quantile(rr, np.linspace(0, 1, n_bins + 1))
+    sig, rmid = [], []
+    for lo, hi in zip(edges[:-1], edges[1:]):
+        m = (rr >= lo) & (rr <= hi)
+        if m.sum() >= 30:
+            v = res[m]
+            sig.append(1.4826 * float(np.median(np.abs(v - np.median(v)))))
+            rmid.append(float(np.median(rr[m])))
+    if len(sig) < 2:
+        return (sig[0] if sig else float("nan")), 0.0
+    sol, _ = nnls(np.c_[np.ones(len(sig)), np.asarray(rmid) ** 4], np.asarray(sig) ** 2)
+    return float(np.sqrt(sol[0])), float(np.sqrt(sol[1]))
+
+
+def noise_at(model: tuple[float, float], range_m: float) -> float:
+    """The range noise (m) of :func:`plane_noise_model`'s ``model`` at ``range_m``."""
+    a, b = model
+    return float(np.hypot(a, b * range_m * range_m)) if np.isfinite(a) else float("nan")
+
+
+def _plane_residuals(points_m, planes, thr_m, rng, max_points):
+    """(range residuals (m), ranges (m)) of the points near the removed planes."""
+    if not planes:
+        return np.zeros(0), np.zeros(0)
     S = points_m if len(points_m) <= max_points else points_m[rng.integers(0, len(points_m), max_points)]
     R = np.linalg.norm(S, axis=1)
     D = S / np.maximum(R, 1e-12)[:, None]
-    res = []
+    res, rr = [], []
     for n, off, _ in planes:
         dn = D @ n
         dist = S @ n - off
         m = (np.abs(dist) < 2 * thr_m) & (np.abs(dn) > 0.3)
         res.append(dist[m] / dn[m])
-    res = np.concatenate(res)
-    if len(res) < 50:
-        return float("nan")
-    return float(1.4826 * np.median(np.abs(res - np.median(res))))
+        rr.append(R[m])
+    return np.concatenate(res), np.concatenate(rr)
 
 
 def cluster_points(Q: np.ndarray, link_m: float) -> np.ndarray:
@@ -333,6 +371,7 @@ def find_candidates(points_m: np.ndarray, radius_m: float, half_angle_rad: float
     keep, planes = remove_planes(Q, min_extent_m=6.0 * r, thr_m=voxel, rng=rng)
     info["planes_removed"] = len(planes)
     info["noise_m"] = plane_range_noise_m(P, planes, voxel, rng)
+    info["noise_model"] = plane_noise_model(P, planes, voxel, rng)
     Qk = Q[keep]
     labels = cluster_points(Qk, 2.2 * voxel)
     ids, counts = np.unique(labels, return_counts=True)
