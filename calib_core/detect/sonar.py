@@ -24,9 +24,13 @@ and pre-screened (:mod:`.sonar_search`); the best few are re-fitted at full reso
 a crop with the cone model and judged (residual scale against the sensor noise measured on the
 planes, coverage of the part of the disc the beams sampled, purity of the returns inside it,
 whether a surface continues its outline over a long arc, diameter). A sphere may rest on or
-hang from something on one side (a seat, a table, a stick, a chain). More than one acceptable
-candidate gives "two candidates" unless one scores CLEAR_WINNER times the other; a sphere of
-another size is reported, not used. Every refusal says why, in words an operator can act on.
+hang from something on one side (a seat, a table, a stick, a chain) or be held in hands. The
+sensor's noise is measured on the planes against range (constant for a sonar or a LiDAR,
+growing with the square of the range for a depth camera) and judged at each candidate's range.
+More than one acceptable candidate gives "two candidates" unless one has CLEAR_WINNER times the
+other's evidence (score x agreement of the size seen with session.yaml's, given how precisely it
+was measured x scatter against the sensor noise: a carried ball beats the shoulders and head of
+the person behind it); a sphere of another size is reported, not used. Every refusal says why, in words an operator can act on.
 The effective beam width (down to 0) is estimated per session with
 :func:`calib_core.detect.sonar_beam.estimate_beam_width_deg`.
 

@@ -65,7 +65,8 @@ class Preset:
     jpeg_quality: int = 90
     # range side (issue 11): the range sensor ("sonar", or "lidar16" / "rgbd" from
     # calib_core.synth.range_sim, no beam footprint), what holds the ball ("" = the scene's
-    # chain or stand; "chair", "table" or "stick" with a person, calib_core.synth.range_scenes),
+    # chain or stand; "chair", "table", "stick" with a person, or "hand": a person carrying it,
+    # calib_core.synth.range_scenes),
     # a solid ball instead of the open mesh, and the range of true diameters (m)
     range_sensor: str = "sonar"  # or alternatives by seed, "rgbd|lidar16" (see for_seed)
     holder: str = ""
