@@ -44,12 +44,12 @@ solver's chi-square inflation then supplies.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from calib_core.detect.sonar_fit import FitResult, angle_to_axis_rad, cone_residuals, fit_sphere
-from calib_core.detect.sonar_outline import attached_sectors, attached_span, roughness_m
+from calib_core.detect.sonar_outline import attached_sectors, attached_span, free_outline_mask, roughness_m
 from calib_core.detect.sonar_search import (
     Candidate,
     disc_coverage,
@@ -78,6 +78,7 @@ MAX_RING_SECTORS = 10  # of 16 around the outline continued by a surface: a cap 
 # unless an operator picked it (then fitted with the diameter it shows, with a warning)
 DIAMETER_TOL = 0.15
 ROUGH_NOISE = 1.3  # a first look scattered beyond this x the planes' noise (+2 mm) is tried from other starts
+HOLDER_INNER = 0.7  # of the disc's angular radius: returns within it stay in the final fit whatever touches it
 SIZE_GATE = 0.5  # radii from the known-radius sphere: returns further off do not measure its size
 SIZE_SYSTEMATIC = 0.03  # relative: how far off a sensor may see a sphere's size (see _Judged.evidence)
 DIAMETER_WARN = 0.06  # relative: above it a found sphere carries a warning
@@ -481,7 +482,7 @@ def _dedupe(judged: list[_Judged], r: float) -> list[_Judged]:
 
 def _finish(P, W, base, j: _Judged, r, h, method, n_all, info, extras) -> SonarDetection:
     """Method-specific final fit on the chosen candidate's crop; assemble the detection."""
-    fits = _final_fits(W[j.idx], j, r, h, method)
+    fits = _final_fits(W[j.idx], j, r, h, method, j.noise_m)
     if fits is None:
         return _not_found("sphere fit did not converge", method, n_points=n_all)
     fit, cone, apparent = fits
@@ -514,7 +515,26 @@ def _finish(P, W, base, j: _Judged, r, h, method, n_all, info, extras) -> SonarD
     )
 
 
-def _final_fits(X, j: _Judged, r, h, method):
+def _away_from_holder(X, fit: FitResult, radius: float, h: float, noise_m: float,
+                      free_radius: bool) -> FitResult:
+    """The cone fit again without the returns near the outline in the sectors where something
+    continues it (a seat or a table under the ball, a hand, a stick): a sparse scan's ring
+    through a seat's edge, next to the ball's limb, drags the centre towards it (13-25 mm on
+    a 16-ring LiDAR). The inner part of the disc (HOLDER_INNER of its angular radius) stays.
+    Inliers are given over all of ``X``; the fit is kept when nothing touches the outline."""
+    keep = free_outline_mask(X, fit.center_m, radius, h, noise_m, inner=HOLDER_INNER)
+    if keep is None or keep.all() or keep.sum() < 3 * MIN_INLIERS:
+        return fit
+    f = fit_sphere(X[keep], fit.center_m, radius, model="cone", half_angle_rad=h, free_radius=free_radius,
+                   sigma0_m=max(fit.sigma_m, 1e-3), n_rounds=3, warm=True)
+    if not f.ok:
+        return fit
+    inl = np.zeros(len(X), bool)
+    inl[keep] = f.inliers
+    return replace(f, inliers=inl)
+
+
+def _final_fits(X, j: _Judged, r, h, method, noise_m: float = float("nan")):
     """(the method's fit, the cone-model fit, the free-radius Euclidean fit) on the crop ``X``
     of the chosen candidate, or None when a fit the method needs fails."""
     Xj = X[j.idx_j]
@@ -525,6 +545,8 @@ def _final_fits(X, j: _Judged, r, h, method):
                           free_radius=other_size, sigma0_m=cone.sigma_m, n_rounds=3, warm=True)
         if not cone.ok:
             return None
+    if method == "cone-model":
+        cone = _away_from_holder(X, cone, j.radius_fit_m, h, noise_m, other_size)
     apparent = fit_sphere(Xj, cone.center_m, r, model="euclid", free_radius=True,
                           sigma0_m=max(cone.sigma_m, 2e-3))
     if method == "cone-model":
