@@ -189,24 +189,26 @@ def plane_range_noise_m(points_m: np.ndarray, planes: list, thr_m: float,
                         rng: np.random.Generator, max_points: int = 20_000) -> float:
     """Range noise scale (m) of the sensor, from the points on the removed planes: the robust
     spread of their distance to the plane converted to range (divided by the cosine of the
-    incidence). NaN without planes. A rough (non-flat) seabed makes it larger, never smaller.
-    (:func:`plane_noise_model` gives it as a function of range.)"""
-    res, _ = _plane_residuals(points_m, planes, thr_m, rng, max_points)
-    if len(res) < 50:
-        return float("nan")
-    return float(1.4826 * np.median(np.abs(res - np.median(res))))
+    incidence). NaN without planes. A rough (non-flat) seabed makes it larger, never smaller."""
+    return plane_noise(points_m, planes, thr_m, rng, max_points)[0]
 
 
-def plane_noise_model(points_m: np.ndarray, planes: list, thr_m: float, rng: np.random.Generator,
-                      max_points: int = 20_000) -> tuple[float, float]:
-    """(a, b) of the range noise ``sigma(R) = sqrt(a^2 + (b R^2)^2)`` (m) measured on the removed
-    planes in range bins: constant for a sonar or a LiDAR, growing with the square of the
-    range for a depth camera. NaNs without planes."""
-    from scipy.optimize import nnls
-
+def plane_noise(points_m: np.ndarray, planes: list, thr_m: float, rng: np.random.Generator,
+                max_points: int = 20_000) -> tuple[float, tuple[float, float]]:
+    """(range noise (m) as :func:`plane_range_noise_m`, and (a, b) of the noise against range
+    ``sigma(R) = sqrt(a^2 + (b R^2)^2)`` measured in range bins: constant for a sonar or a LiDAR,
+    growing with the square of the range for a depth camera). NaNs without planes."""
     res, rr = _plane_residuals(points_m, planes, thr_m, rng, max_points)
     if len(res) < 50:
-        return float("nan"), float("nan")
+        return float("nan"), (float("nan"), float("nan"))
+    return float(1.4826 * np.median(np.abs(res - np.median(res)))), _noise_model(res, rr)
+
+
+def _noise_model(res: np.ndarray, rr: np.ndarray) -> tuple[float, float]:
+    """(a, b) of ``sigma(R)^2 = a^2 + b^2 R^4`` from the robust spread of the residuals ``res``
+    in up to 6 range bins (non-negative least squares)."""
+    from scipy.optimize import nnls
+
     n_bins = int(np.clip(len(res) // 200, 1, 6))
     edges = np.quantile(rr, np.linspace(0, 1, n_bins + 1))
     sig, rmid = [], []
@@ -223,7 +225,7 @@ def plane_noise_model(points_m: np.ndarray, planes: list, thr_m: float, rng: np.
 
 
 def noise_at(model: tuple[float, float], range_m: float) -> float:
-    """The range noise (m) of :func:`plane_noise_model`'s ``model`` at ``range_m``."""
+    """The range noise (m) of :func:`plane_noise`'s ``model`` at ``range_m``."""
     a, b = model
     return float(np.hypot(a, b * range_m * range_m)) if np.isfinite(a) else float("nan")
 
@@ -370,8 +372,7 @@ def find_candidates(points_m: np.ndarray, radius_m: float, half_angle_rad: float
     info = {"n_voxels": int(len(Q)), "voxel_m": voxel}
     keep, planes = remove_planes(Q, min_extent_m=6.0 * r, thr_m=voxel, rng=rng)
     info["planes_removed"] = len(planes)
-    info["noise_m"] = plane_range_noise_m(P, planes, voxel, rng)
-    info["noise_model"] = plane_noise_model(P, planes, voxel, rng)
+    info["noise_m"], info["noise_model"] = plane_noise(P, planes, voxel, rng)
     Qk = Q[keep]
     labels = cluster_points(Qk, 2.2 * voxel)
     ids, counts = np.unique(labels, return_counts=True)
