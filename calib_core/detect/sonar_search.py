@@ -309,9 +309,7 @@ def ransac_sphere(X: np.ndarray, r_lo: float, r_hi: float, thr_m: float, reach_m
     C, Rr = C[good], Rr[good]
     Xs = X if n <= 3000 else X[rng.choice(n, 3000, replace=False)]
     dist = _pairwise_dist(C, Xs)
-    # MSAC: each voxel within the band scores by how close it lies (a ball's tight shell beats
-    # the corner of a block, which a band of the same width also catches)
-    cnt = np.maximum(1.0 - ((dist - Rr[:, None]) / thr_m) ** 2, 0.0).sum(axis=1)
+    cnt = (np.abs(dist - Rr[:, None]) < thr_m).sum(axis=1).astype(float)
     if r_pref is not None:
         cnt *= np.exp(-0.5 * ((Rr - r_pref) / r_pref_sd) ** 2)
     for b in np.argsort(-cnt)[:8]:
@@ -395,6 +393,7 @@ def find_candidates(points_m: np.ndarray, radius_m: float, half_angle_rad: float
 
 MIN_VOXELS = 6  # of a cluster, and on a candidate's shell
 N_HYP = 96  # RANSAC samples per look
+MAX_LOOKS = 12  # RANSAC looks in one cluster (a big one, a room with no plane removed, hides many round things)
 
 
 def _cluster_candidates(X: np.ndarray, cid: int, r: float, h: float, voxel: float,
@@ -407,7 +406,7 @@ def _cluster_candidates(X: np.ndarray, cid: int, r: float, h: float, voxel: floa
     bloom = float(np.linalg.norm(X.mean(axis=0))) * np.tan(h)
     thr = max(0.2 * r, 0.75 * voxel)
     r_hi = 1.5 * r + 2.0 * bloom + 0.01
-    for _attempt in range(min(6, 2 + len(X) // 200)):
+    for _attempt in range(min(MAX_LOOKS, 2 + len(X) // 200)):
         found = ransac_sphere(X, 0.6 * r, r_hi, thr, 2.5 * r + bloom, rng, n_hyp=N_HYP,
                               r_pref=r + bloom, r_pref_sd=0.25 * r)
         if found is None:
