@@ -63,7 +63,10 @@ def _session(cache: Path, preset: str, seed: int) -> Path:
 
 def _why(reason: str) -> str:
     """A refusal's reason without the candidate's range (to group misses)."""
-    return reason.split("away: ", 1)[-1].rstrip(")") if "away: " in reason else reason
+    if "away: " not in reason:
+        return reason
+    why = reason.split("away: ", 1)[-1]
+    return why[:-1] if why.endswith(")") else why
 
 
 def _stats(errs: list, n: int, along: list) -> dict:
