@@ -518,11 +518,12 @@ def _finish(P, W, base, j: _Judged, r, h, method, n_all, info, extras) -> SonarD
 def _away_from_holder(X, fit: FitResult, radius: float, h: float, noise_m: float,
                       free_radius: bool) -> FitResult:
     """The cone fit again without the returns near the outline in the sectors where something
-    continues it (a seat or a table under the ball, a hand, a stick): a sparse scan's ring
+    continues it over two sectors or more (a seat or a table under the ball, a hand; a thin
+    chain or stick touches one and its returns are rejected anyway): a sparse scan's ring
     through a seat's edge, next to the ball's limb, drags the centre towards it (13-25 mm on
     a 16-ring LiDAR). The inner part of the disc (HOLDER_INNER of its angular radius) stays.
     Inliers are given over all of ``X``; the fit is kept when nothing touches the outline."""
-    keep = free_outline_mask(X, fit.center_m, radius, h, noise_m, inner=HOLDER_INNER)
+    keep = free_outline_mask(X, fit.center_m, radius, h, noise_m, inner=HOLDER_INNER, min_attached=2)
     if keep is None or keep.all() or keep.sum() < 3 * MIN_INLIERS:
         return fit
     f = fit_sphere(X[keep], fit.center_m, radius, model="cone", half_angle_rad=h, free_radius=free_radius,

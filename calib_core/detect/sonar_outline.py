@@ -65,11 +65,13 @@ def attached_span(att: np.ndarray) -> int:
 
 
 def free_outline_mask(X: np.ndarray, c: np.ndarray, radius: float, h_max: float,
-                      noise_m: float = float("nan"), inner: float = 0.5) -> np.ndarray | None:
+                      noise_m: float = float("nan"), inner: float = 0.5,
+                      min_attached: int = 1) -> np.ndarray | None:
     """Points of ``X`` that are not in an attached sector (dilated by one sector each way),
     plus every point of the inner disc (angle from the centre below ``inner`` x the sphere's
-    angular radius), for a beam up to ``h_max`` (rad) wide. None when nothing of the outline is
-    free (no blooming can be seen there)."""
+    angular radius), for a beam up to ``h_max`` (rad) wide. Every point when fewer than
+    ``min_attached`` sectors are attached (a thin chain or stick touches one). None when
+    nothing of the outline is free (no blooming can be seen there)."""
     R = np.linalg.norm(X, axis=1)
     D = X / np.maximum(R, 1e-12)[:, None]
     cn = float(np.linalg.norm(c))
@@ -77,6 +79,8 @@ def free_outline_mask(X: np.ndarray, c: np.ndarray, radius: float, h_max: float,
     att = attached_sectors(R, D, c, radius, a_sph + h_max, h_max, noise_m)
     if att.all():
         return None
+    if att.sum() < min_attached:
+        return np.ones(len(X), bool)
     bad = att | np.roll(att, 1) | np.roll(att, -1)
     if bad.all():
         bad = att
