@@ -6,7 +6,7 @@ from __future__ import annotations
 from html import escape
 
 from calib_core.ingest.motion import motion_summary_rows
-from calib_core.report_motion import HEADER
+from calib_core.report.motion import HEADER
 
 
 def motion_markdown(session) -> str:

@@ -35,6 +35,8 @@ import yaml
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
+from benchmarks._table import print_targets  # noqa: E402
+
 PROBE = ("import sys, runpy; sys.argv = ['sonarcal'] + sys.argv[1:]; "
          "from sonarcal_cli.main import main; rc = main(sys.argv[1:]); "
          "print('OPEN3D_IMPORTED=' + str('open3d' in sys.modules), file=sys.stderr); sys.exit(rc)")
@@ -159,9 +161,7 @@ def main(argv=None):
                    ("workbench Solve after the first detection (calibrate_session, reused) <= 1.5 s", f"{ts:.2f} s",
                     ts <= 1.5)]
     print(f"load average after: {os.getloadavg()}")
-    print("\nTargets")
-    for name, val, ok in checks:
-        print(f"  [{'met' if ok else 'MISSED'}] {name}: {val}")
+    print_targets(checks)
 
 
 if __name__ == "__main__":

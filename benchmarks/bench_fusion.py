@@ -19,6 +19,7 @@ import numpy as np
 
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
 
+from benchmarks._table import print_table  # noqa: E402
 from calib_core import fusion as F  # noqa: E402
 from calib_core.camera import CameraModel  # noqa: E402
 from calib_core.geometry import T_from_rotvec  # noqa: E402
@@ -103,10 +104,8 @@ def main() -> int:
           f"(cpus: {os.cpu_count()}, load: {os.getloadavg()[0]:.2f})")
     head = ["scene", "points", "in view", "coloured", "project", "mask", "overlay", "colour auto",
             "colour r=2", "project+mask+colour", "(best run)", "(CPU time)", "2-cam colour"]
-    print("| " + " | ".join(head) + " |")
-    print("|" + "---|" * len(head))
-    for r in rows:
-        print(f"| {r[0]} | {r[1]:,} | {r[2]:,} | {r[3]:.0%} | " + " | ".join(f"{t:.1f} ms" for t in r[4:]) + " |")
+    print_table(head, [[r[0], f"{r[1]:,}", f"{r[2]:,}", f"{r[3]:.0%}", *(f"{t:.1f} ms" for t in r[4:])] for r in rows],
+                align=False)
     worst, best, worst_cpu = max(r[9] for r in rows), max(r[10] for r in rows), max(r[11] for r in rows)
     print(f"target project+mask+colour < 150 ms: {'met' if worst < 150 else 'MISSED'} (median {worst:.1f} ms wall; "
           f"best run {best:.1f} ms; {worst_cpu:.1f} ms CPU; worst scene)")

@@ -40,6 +40,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from benchmarks._table import print_table  # noqa: E402
 from calib_core.plan import (CameraState, Limits, NoiseModel, SonarField, Target, candidates, fit_noise,  # noqa: E402
                              plan_next, visibility)
 from calib_core.solve.model import RigState, camera_data, log_so3  # noqa: E402
@@ -221,12 +222,6 @@ def prediction(w: World, seed: int, trials: int, criterion: str, n_before: int =
     return {n: (out[n][0], out[n][1], np.array(errs[n])) for n in out}
 
 
-def table(title: str, cols: list, rows: list) -> str:
-    w = [max(len(str(c)), *(len(str(r[i])) for r in rows)) for i, c in enumerate(cols)]
-    line = lambda r: "| " + " | ".join(str(v).ljust(w[i]) for i, v in enumerate(r)) + " |"  # noqa: E731
-    return "\n".join([f"**{title}**", "", line(cols), "|" + "|".join("-" * (x + 2) for x in w) + "|", *map(line, rows)])
-
-
 def main() -> int:
     ap = argparse.ArgumentParser()
     ap.add_argument("--rigs", type=int, default=60)
@@ -261,9 +256,9 @@ def main() -> int:
         rows.append([label, int(m.sum()), f"{g.mean():.1f} / {np.median(g):.0f}", f"{r.mean():.1f} / {np.median(r):.0f}",
                      f"{gr.mean():.1f} / {np.median(gr):.0f}", f"{100 * (1 - g.mean() / r.mean()):.0f} %",
                      f"{100 * (1 - g.mean() / gr.mean()):.0f} %", f"{(g >= CAP).sum()}/{(r >= CAP).sum()}/{(gr >= CAP).sum()}"])
-    print(table(f"Captures to reach {TARGET.text()} (mean / median; criterion {a.criterion})",
-                ["rigs", "n", "guided", "random", "grid", "guided fewer than random", "guided fewer than grid",
-                 f"capped at {CAP} (g/r/grid)"], rows))
+    print_table(["rigs", "n", "guided", "random", "grid", "guided fewer than random", "guided fewer than grid",
+                 f"capped at {CAP} (g/r/grid)"], rows,
+                title=f"Captures to reach {TARGET.text()} (mean / median; criterion {a.criterion})")
     print()
     prow = []
     for b in befores:
@@ -275,10 +270,10 @@ def main() -> int:
             p10, p50, p90 = np.percentile(per, [10, 50, 90])
             prow.append([f"{b} + 1", label, f"{zr:.2f}", f"{zt:.2f}", f"{p10:.2f} / {p50:.2f} / {p90:.2f}",
                          "met" if max(abs(zr - 1), abs(zt - 1)) <= 0.2 else "missed"])
-    print(table(f"Achieved / predicted 1-sigma after a guided capture (RMS of error / predicted sigma over "
-                f"{a.rigs} rigs x cameras x 3 axes x {a.trials} noise draws; 1.00 = exact, target 0.8-1.2)",
-                ["captures", "prediction", "rotation", "translation",
-                 "per rig-camera, 6 axes: p10 / median / p90", "within 20 %"], prow))
+    print_table(["captures", "prediction", "rotation", "translation",
+                 "per rig-camera, 6 axes: p10 / median / p90", "within 20 %"], prow,
+                title=f"Achieved / predicted 1-sigma after a guided capture (RMS of error / predicted sigma over "
+                      f"{a.rigs} rigs x cameras x 3 axes x {a.trials} noise draws; 1.00 = exact, target 0.8-1.2)")
     if plan_s:
         print(f"\nplanning one guided step (candidates on a 17 x 13 x 10 grid, visibility, noise fit, scoring, "
               f"1 suggestion): median {1000 * np.median(plan_s):.0f} ms, p90 {1000 * np.percentile(plan_s, 90):.0f} ms "

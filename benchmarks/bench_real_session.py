@@ -98,6 +98,9 @@ def main(argv=None) -> int:
                   f"{'yes' if ok else 'NO':>7} {raw:8.2f} {hon:10.2f}")
         else:
             print(f"{cam:8} {used:5d} {out:4d} {'-':>10} {'-':>8} {'-':>12} {'-':>7} {raw:8.2f} {hon:10.2f}")
+    from calib_core.solve.summary import scale_line
+
+    print(scale_line(cal))
     missing = [c for c in checks if c not in cal["cameras"]]
     if missing:
         print(f"not calibrated: {', '.join(missing)}")

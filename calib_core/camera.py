@@ -88,8 +88,25 @@ class CameraModel:
         uv = np.asarray(uv_px, dtype=float).reshape(-1, 2)
         if uv.shape[0] == 0:
             return uv.copy()
-        crit = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 50, 1e-12)
         finite = np.isfinite(uv).all(axis=1)
+        xy = self._undistort_start(uv, finite)
+        with np.errstate(all="ignore"):
+            res = np.linalg.norm(self.distort(xy) - uv, axis=1)
+            for it in range(max(iterations, 40)):
+                if it >= iterations and not (res[finite] > 1e-10).any():
+                    break
+                self._newton_step(xy, uv, res)
+            J = self.distort_jacobian(xy)
+            det = J[:, 0, 0] * J[:, 1, 1] - J[:, 0, 1] * J[:, 1, 0]
+        # a root with det <= 0 lies beyond the fold of the radial polynomial: not a real view ray
+        good = finite & (res < 1e-6) & (det > 0)
+        xy[~good] = np.nan
+        return xy
+
+    def _undistort_start(self, uv: np.ndarray, finite: np.ndarray) -> np.ndarray:
+        """Start for :meth:`normalize`: OpenCV's iterative undistortion, the pinhole inverse
+        where that fails (non-finite or far off)."""
+        crit = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 50, 1e-12)
         src = np.ascontiguousarray(np.where(finite[:, None], uv, 0.0).reshape(-1, 1, 2))
         if hasattr(cv2, "undistortPointsIter"):  # OpenCV 4.x
             xy = cv2.undistortPointsIter(src, self.K, self.dist, None, None, crit)
@@ -99,34 +116,28 @@ class CameraModel:
         naive = np.column_stack([(uv[:, 0] - self.cx) / self.fx, (uv[:, 1] - self.cy) / self.fy])
         start_bad = ~np.isfinite(xy).all(axis=1) | (np.abs(xy) > 1e3).any(axis=1)
         xy[start_bad] = naive[start_bad]
-        with np.errstate(all="ignore"):
-            res = np.linalg.norm(self.distort(xy) - uv, axis=1)
-            for it in range(max(iterations, 40)):
-                if it >= iterations and not (res[finite] > 1e-10).any():
-                    break
-                r = self.distort(xy) - uv
-                J = self.distort_jacobian(xy)  # (N,2,2) d uv / d xy
-                det = J[:, 0, 0] * J[:, 1, 1] - J[:, 0, 1] * J[:, 1, 0]
-                step = np.column_stack([J[:, 1, 1] * r[:, 0] - J[:, 0, 1] * r[:, 1],
-                                        -J[:, 1, 0] * r[:, 0] + J[:, 0, 0] * r[:, 1]]) / det[:, None]
-                step[~np.isfinite(step)] = 0.0
-                scale = np.ones(len(xy))
-                for _ in range(8):  # backtrack where a full step makes things worse
-                    trial = xy - scale[:, None] * step
-                    new_res = np.linalg.norm(self.distort(trial) - uv, axis=1)
-                    worse = ~(new_res <= res)
-                    if not worse.any():
-                        break
-                    scale[worse] *= 0.5
-                ok = new_res <= res
-                xy[ok] = trial[ok]
-                res[ok] = new_res[ok]
-            J = self.distort_jacobian(xy)
-            det = J[:, 0, 0] * J[:, 1, 1] - J[:, 0, 1] * J[:, 1, 0]
-        # a root with det <= 0 lies beyond the fold of the radial polynomial: not a real view ray
-        good = finite & (res < 1e-6) & (det > 0)
-        xy[~good] = np.nan
         return xy
+
+    def _newton_step(self, xy: np.ndarray, uv: np.ndarray, res: np.ndarray) -> None:
+        """One damped Newton step of :meth:`normalize` (``xy`` and its pixel error ``res`` in
+        place): halved up to 8 times where the full step makes the error worse."""
+        r = self.distort(xy) - uv
+        J = self.distort_jacobian(xy)  # (N,2,2) d uv / d xy
+        det = J[:, 0, 0] * J[:, 1, 1] - J[:, 0, 1] * J[:, 1, 0]
+        step = np.column_stack([J[:, 1, 1] * r[:, 0] - J[:, 0, 1] * r[:, 1],
+                                -J[:, 1, 0] * r[:, 0] + J[:, 0, 0] * r[:, 1]]) / det[:, None]
+        step[~np.isfinite(step)] = 0.0
+        scale = np.ones(len(xy))
+        for _ in range(8):  # backtrack where a full step makes things worse
+            trial = xy - scale[:, None] * step
+            new_res = np.linalg.norm(self.distort(trial) - uv, axis=1)
+            worse = ~(new_res <= res)
+            if not worse.any():
+                break
+            scale[worse] *= 0.5
+        ok = new_res <= res
+        xy[ok] = trial[ok]
+        res[ok] = new_res[ok]
 
     def rays(self, uv_px: np.ndarray) -> np.ndarray:
         """Unit viewing rays (N,3) in the camera frame for raw pixels (N,2)."""

@@ -79,6 +79,24 @@ def resolve_candidates(cam: CameraModel, centers_sonar_m: dict[str, np.ndarray],
     X = {c: np.asarray(centers_sonar_m[c], float) for c in ids}
     P = {c: candidate_points_cam_m(cam, candidates[c]) for c in ids}
     tol = {c: 0.05 * np.asarray(candidates[c], float)[:, 2] + 0.03 for c in ids}
+    best_T, n_in = _ransac(ids, X, P, tol, iterations, seed)
+    if best_T is None or n_in < 4:
+        return Resolution()
+    out = Resolution(T_cam_sonar=best_T)
+    for c in ids:
+        _decide(out, cam, c, best_T[:3, :3] @ X[c] + best_T[:3, 3], P[c], tol[c])
+    for c in predict_for:
+        if c in centers_sonar_m and c not in candidates:
+            X_cam = best_T[:3, :3] @ np.asarray(centers_sonar_m[c], float) + best_T[:3, 3]
+            uv = cam.project(X_cam[None])[0]
+            if X_cam[2] > 0 and np.isfinite(uv).all() and cam.in_image(uv[None])[0]:
+                out.predicted_uvr[c] = (float(uv[0]), float(uv[1]), float(np.linalg.norm(X_cam)))
+    return out
+
+
+def _ransac(ids: list, X: dict, P: dict, tol: dict, iterations: int, seed: int) -> tuple:
+    """(best T_cam_sonar or None, its number of captures with a candidate within tolerance):
+    hypotheses from 3 captures, one candidate each; ties broken by the lower summed distance."""
     rng = np.random.default_rng(seed)
     best_T, best_key = None, (-1, np.inf)
     for _ in range(iterations):
@@ -95,23 +113,17 @@ def resolve_candidates(cam: CameraModel, centers_sonar_m: dict[str, np.ndarray],
             cost += min(d.min(), 1.0)
         if (n_in, -cost) > (best_key[0], -best_key[1]):
             best_T, best_key = T, (n_in, cost)
-    if best_T is None or best_key[0] < 4:
-        return Resolution()
-    out = Resolution(T_cam_sonar=best_T)
-    for c in ids:
-        X_cam = best_T[:3, :3] @ X[c] + best_T[:3, 3]
-        d = np.linalg.norm(P[c] - X_cam, axis=1) / tol[c]
-        order = np.argsort(d)
-        if len(P[c]) >= 2 and d[order[0]] <= 1.0 and d[order[1]] > 2.0:  # clearly one, clearly not the other
-            out.chosen[c] = int(order[0])
-        elif d[order[0]] > 1.0 or len(P[c]) >= 2:
-            uv = cam.project(X_cam[None])[0]
-            if np.isfinite(uv).all() and cam.in_image(uv[None])[0]:
-                out.predicted_uvr[c] = (float(uv[0]), float(uv[1]), float(np.linalg.norm(X_cam)))
-    for c in predict_for:
-        if c in centers_sonar_m and c not in candidates:
-            X_cam = best_T[:3, :3] @ np.asarray(centers_sonar_m[c], float) + best_T[:3, 3]
-            uv = cam.project(X_cam[None])[0]
-            if X_cam[2] > 0 and np.isfinite(uv).all() and cam.in_image(uv[None])[0]:
-                out.predicted_uvr[c] = (float(uv[0]), float(uv[1]), float(np.linalg.norm(X_cam)))
-    return out
+    return best_T, best_key[0]
+
+
+def _decide(out: Resolution, cam: CameraModel, c: str, X_cam: np.ndarray, P_c: np.ndarray, tol_c: np.ndarray) -> None:
+    """Capture ``c``'s target among its candidates ``P_c`` given the registered sonar centre
+    ``X_cam`` (into ``out.chosen``), or a place to look again (``out.predicted_uvr``)."""
+    d = np.linalg.norm(P_c - X_cam, axis=1) / tol_c
+    order = np.argsort(d)
+    if len(P_c) >= 2 and d[order[0]] <= 1.0 and d[order[1]] > 2.0:  # clearly one, clearly not the other
+        out.chosen[c] = int(order[0])
+    elif d[order[0]] > 1.0 or len(P_c) >= 2:
+        uv = cam.project(X_cam[None])[0]
+        if np.isfinite(uv).all() and cam.in_image(uv[None])[0]:
+            out.predicted_uvr[c] = (float(uv[0]), float(uv[1]), float(np.linalg.norm(X_cam)))

@@ -44,7 +44,7 @@ def _task(item):
     """(cid, sensor, entry) or (cid, sensor, SessionError parts): SessionError does not pickle.
     A sonar task carries the session's beam width (estimated after the pool started)."""
     from calib_core.errors import SessionError
-    from calib_core.pipeline import detect_one
+    from calib_core.detect.entries import detect_one
 
     cid, sensor, beam = item
     if beam is not None:
@@ -58,7 +58,7 @@ def _task(item):
 def _crop_task(cid, detections):
     """One capture's crop for the beam-width estimate (None when no sphere is found there)."""
     from calib_core.errors import SessionError
-    from calib_core.pipeline import beam_crop_of
+    from calib_core.detect.entries import beam_crop_of
 
     try:
         return beam_crop_of(_DATA, cid, detections)
@@ -67,7 +67,7 @@ def _crop_task(cid, detections):
 
 
 def _scan_task(crops):
-    from calib_core.pipeline import beam_width_from_crops
+    from calib_core.detect.entries import beam_width_from_crops
 
     return beam_width_from_crops(_DATA, crops)
 
@@ -104,7 +104,7 @@ def run_detections(data, todo: list[tuple[str, str]], progress=None, workers: in
     the image detections run meanwhile."""
     from concurrent.futures.process import BrokenProcessPool
 
-    from calib_core.pipeline import detect_one, session_beam_width
+    from calib_core.detect.entries import detect_one, session_beam_width
 
     n = worker_count(len(todo) + (1 if beam_ids else 0), workers)
     if n > 1:
@@ -126,7 +126,7 @@ def _run_pool(data, todo, progress, n: int, beam_ids: list, beam_detections: dic
     import multiprocessing as mp
     from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 
-    from calib_core.pipeline import beam_capture_ids
+    from calib_core.detect.entries import beam_capture_ids
 
     from multiprocessing import forkserver
 

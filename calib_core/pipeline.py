@@ -6,16 +6,21 @@ The shells (CLI, workbench) call these so that they give the same numbers:
 - :func:`refit_image` / :func:`refit_sonar` turn an operator's click or pick into a
   ``corrected`` entry (refit near the hint; the hint itself when the refit fails);
 - :func:`correspondences` builds the solver's input for one camera.
+
+One capture's detection (and :class:`SessionData`) lives in :mod:`calib_core.detect.entries`,
+re-exported here; :mod:`calib_core.parallel` runs it in worker processes.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Callable
 
 import numpy as np
 
-from calib_core.camera import CameraModel
+from calib_core.detect.entries import (SessionData, _as_data, beam_capture_ids, beam_crop_of,  # noqa: F401  (public API)
+                                       beam_width_from_crops, detect_image_entry, detect_one, detect_sonar_entry,
+                                       estimate_session_beam_width, session_beam_width)
 from calib_core.detections import is_operator_entry, merge_auto, now_iso
 from calib_core.errors import SessionError
 from calib_core.session import Session
@@ -27,149 +32,6 @@ DEFAULT_SIGMA_IMAGE_PX = 1.0
 DEFAULT_SIGMA_SONAR_M = 0.005
 CLICK_SIGMA_IMAGE_PX = 2.0  # an operator's click without a successful refit
 PICK_SIGMA_SONAR_M = 0.02  # an operator's pick without a successful refit
-
-
-@dataclass
-class SessionData:
-    """Per-session caches a shell may keep between calls (intrinsics, background models)."""
-
-    session: Session
-    cameras: dict[str, CameraModel] = field(default_factory=dict)
-    backgrounds: dict[str, object | None] = field(default_factory=dict)  # PreparedBackground per camera
-    beam_width_deg: float | None = None  # effective beam width estimated by detect_session
-
-    @property
-    def effective_beam_width_deg(self) -> float:
-        """The estimated effective beam width when there is one, else the manifest's."""
-        return self.beam_width_deg or self.session.beam_width_deg or 1.0
-
-    def adopt_beam_width(self, detections: dict) -> None:
-        """Take the effective beam width an earlier detection run recorded in the sonar entries
-        (their median), so refits after a reload use the same width as the first detection."""
-        if self.beam_width_deg is None:
-            nominal = self.session.beam_width_deg or 1.0
-            widths = [e["beam_width_deg"] for d in detections.values() for s, e in d.items()
-                      if s == "sonar" and isinstance(e.get("beam_width_deg"), (int, float))
-                      and e.get("beam_width_nominal_deg", nominal) == nominal]
-            if widths:
-                self.beam_width_deg = float(np.median(widths))
-
-    def camera(self, cam: str) -> CameraModel:
-        if cam not in self.cameras:
-            self.cameras[cam] = self.session.camera_model(cam)
-        return self.cameras[cam]
-
-    def background(self, cam: str):
-        """Background model of a camera (median of its frames, prepared for repeated detections),
-        None when it has none."""
-        if cam not in self.backgrounds:
-            from calib_core.detect.image import background_model, prepare_background
-            from calib_core.io.images import load_background_frames
-
-            spec = self.session.cameras[cam]
-            if spec.background_path is None:
-                self.backgrounds[cam] = None
-            else:
-                start, end = spec.background_window_s
-                model = self.camera(cam)
-                frames = load_background_frames(spec.background_path, (model.width_px, model.height_px),
-                                                root=self.session.root, start_s=start, end_s=end)
-                _check_image_size(spec.background_path, frames[0], self.camera(cam))
-                self.backgrounds[cam] = prepare_background(background_model(frames, how="median"))
-        return self.backgrounds[cam]
-
-
-def _check_image_size(path, image, cam: CameraModel) -> None:
-    h, w = image.shape[:2]
-    if (w, h) != (cam.width_px, cam.height_px):
-        raise SessionError(path, f"image is {w} x {h} but its intrinsics say {cam.width_px} x {cam.height_px}")
-
-
-def _as_data(session_or_data) -> SessionData:
-    return session_or_data if isinstance(session_or_data, SessionData) else SessionData(session_or_data)
-
-
-def detect_image_entry(data: SessionData | Session, capture_id: str, cam: str,
-                       hint_uv_px=None, hint_radius_px=None) -> dict:
-    """Run the image detector on one capture's image; return a detections.yaml entry (auto)."""
-    from calib_core.detect.image import detect_sphere_in_image
-    from calib_core.io.images import load_image
-
-    data = _as_data(data)
-    path = data.session.capture(capture_id).image_paths[cam]
-    model = data.camera(cam)
-    image = load_image(path, (model.width_px, model.height_px))
-    _check_image_size(path, image, model)
-    det = detect_sphere_in_image(image, model, data.session.sphere_radius_m, background=data.background(cam),
-                                 hint_uv_px=hint_uv_px, hint_radius_px=hint_radius_px)
-    return det.to_entry()
-
-
-def detect_sonar_entry(data: SessionData | Session, capture_id: str, seed_center_m=None, points_sonar_m=None) -> dict:
-    """Run the sonar detector on one capture's cloud; return a detections.yaml entry (auto).
-
-    Uses the session's effective beam width (estimated by :func:`detect_session`, else the
-    manifest's ``sonar.beam_width_deg``) and records it in the entry.
-    """
-    from calib_core.detect.sonar import detect_sphere_in_cloud
-    from calib_core.io.clouds import load_cloud
-
-    data = _as_data(data)
-    s = data.session
-    if points_sonar_m is None:
-        points_sonar_m = load_cloud(s.capture(capture_id).cloud_path).points_m
-    beam = data.effective_beam_width_deg
-    det = detect_sphere_in_cloud(points_sonar_m, s.sphere_radius_m, beam_width_deg=beam, seed_center_m=seed_center_m)
-    entry = det.to_entry()
-    entry["beam_width_deg"] = round(float(beam), 4)
-    entry["beam_width_nominal_deg"] = float(s.beam_width_deg or 1.0)
-    return entry
-
-
-def estimate_session_beam_width(data: SessionData, clouds: dict[str, np.ndarray], detections: dict) -> float | None:
-    """Effective beam width (deg) from all sphere scans of the session, or None when it cannot
-    be estimated (fewer than 3 spheres found). Operator-validated sonar centres are used as given.
-
-    Why: blooming depends on the angle out to which a strong target still returns, which is
-    the nominal width only approximately (it depends on target strength and threshold).
-    """
-    from calib_core.detect.sonar_beam import estimate_beam_width_deg
-
-    ids = list(clouds)
-    nominal = data.session.beam_width_deg or 1.0
-    est = estimate_beam_width_deg([clouds[c] for c in ids], data.session.sphere_radius_m, nominal_deg=nominal,
-                                  centers_sonar_m=[_operator_center(detections, c) for c in ids])
-    return None if est.reason else float(est.beam_width_deg)
-
-
-def _operator_center(detections: dict, cid: str):
-    e = detections.get(cid, {}).get("sonar")
-    return np.asarray(e["center"], float) if is_operator_entry(e) and e.get("center") else None
-
-
-def beam_capture_ids(capture_ids: list[str]) -> list[str]:
-    """The captures the beam-width estimate looks at (spread over the session, at most its maximum)."""
-    from calib_core.detect.sonar_beam import MAX_CAPTURES, _spread_order
-
-    return [capture_ids[i] for i in _spread_order(len(capture_ids))][:MAX_CAPTURES]
-
-
-def beam_crop_of(data: SessionData, cid: str, detections: dict):
-    """One capture's crop for the beam-width estimate (sonar_beam.beam_crop), loaded from its cloud."""
-    from calib_core.detect.sonar_beam import beam_crop
-    from calib_core.io.clouds import load_cloud
-
-    P = load_cloud(data.session.capture(cid).cloud_path).points_m
-    return beam_crop(P, data.session.sphere_radius_m, data.session.beam_width_deg or 1.0,
-                     _operator_center(detections, cid))
-
-
-def beam_width_from_crops(data: SessionData, crops: list) -> float | None:
-    """The session's effective beam width from the crops of :func:`beam_crop_of`, or None."""
-    from calib_core.detect.sonar_beam import estimate_from_crops
-
-    est = estimate_from_crops(crops, data.session.sphere_radius_m, data.session.beam_width_deg or 1.0)
-    return None if est.reason else float(est.beam_width_deg)
 
 
 def pending(session: Session, detections: dict, captures=None, redetect_auto: bool = True) -> list[tuple[str, str]]:
@@ -256,22 +118,6 @@ def detect_session(session_or_data, detections: dict, progress: Progress | None 
     if progress:
         progress(len(todo), len(todo), "done")
     return merge_auto(detections, auto)
-
-
-def session_beam_width(data: SessionData, capture_ids: list[str], detections: dict) -> float | None:
-    """Load the clouds of ``capture_ids`` and estimate the session's effective beam width
-    (:func:`estimate_session_beam_width`); None when it cannot be estimated."""
-    from calib_core.io.clouds import load_cloud
-
-    clouds = {cid: load_cloud(data.session.capture(cid).cloud_path).points_m for cid in capture_ids}
-    return estimate_session_beam_width(data, clouds, detections)
-
-
-def detect_one(data: SessionData, cid: str, sensor: str) -> dict:
-    """One automatic detection (no fingerprint): what a worker process runs."""
-    if sensor == "sonar":
-        return detect_sonar_entry(data, cid)
-    return detect_image_entry(data, cid, sensor)
 
 
 def _resolve_ambiguous_images(data: SessionData, detections: dict, cam: str, only: set) -> dict:

@@ -130,94 +130,14 @@ _YAML11_EXPONENT = re.compile(r"^[-+]?(\d+\.?\d*|\.\d+)[eE][-+]?\d+$")
 
 def load_session(folder: str | Path) -> Session:
     """Parse and structurally validate ``folder/session.yaml``."""
-    root = Path(folder)
-    try:
-        exists = root.exists()
-    except (OSError, ValueError):
-        exists = False
-    if not exists:
-        raise SessionError(root, "session folder not found")
-    if root.is_file() and root.name == MANIFEST:
-        root = root.parent
-    if not root.is_dir():
-        raise SessionError(root, "not a folder (give the session folder that holds session.yaml)")
-    root = root.resolve()
+    root = _session_root(folder)
     manifest = confine_write(root, root / MANIFEST)  # a session.yaml symlinked out of the folder is refused
     data = read_yaml_mapping(manifest, "session manifest (session.yaml)")
-
-    fmt = data.get("format")
-    if fmt is not None and (not isinstance(fmt, str) or not fmt.startswith("sonar-camera-session/")):
-        raise SessionError(manifest, f"format {short_repr(fmt)} is not a sonar-camera-session format")
-    if isinstance(fmt, str) and fmt != SESSION_FORMAT:
-        raise SessionError(manifest, f"format {short_repr(fmt)} is not one this tool understands ({SESSION_FORMAT})")
-
-    sphere = data.get("sphere")
-    if not isinstance(sphere, dict) or "diameter" not in sphere:
-        raise SessionError(manifest, "missing 'sphere: {diameter: METRES}'")
-    diameter = _num(manifest, sphere["diameter"], "sphere.diameter")
-    if diameter > 5.0:
-        raise SessionError(manifest, f"sphere.diameter {diameter} m is implausible (metres expected, e.g. 0.22)")
-
-    sonar = data.get("sonar") or {}
-    if not isinstance(sonar, dict):
-        raise SessionError(manifest, "'sonar' must be a mapping")
-    sound_speed = _num(manifest, sonar["sound_speed"], "sonar.sound_speed") if sonar.get("sound_speed") is not None else None
-    if sound_speed is not None and not 1300 <= sound_speed <= 1700:
-        raise SessionError(manifest, f"sonar.sound_speed {sound_speed} m/s is outside water's 1300-1700 m/s")
-    beam = _num(manifest, sonar.get("beam_width_deg", 1.0), "sonar.beam_width_deg")
-    if beam > 20:
-        raise SessionError(manifest, f"sonar.beam_width_deg {beam} is implausible (degrees, e.g. 1.0)")
-
-    cams_raw = data.get("cameras")
-    if not isinstance(cams_raw, dict) or not cams_raw:
-        raise SessionError(manifest, "missing 'cameras' (a mapping of camera name to {intrinsics: ...})")
-    cameras: dict[str, CameraSpec] = {}
-    for name, spec in cams_raw.items():
-        name = str(name)
-        if name == "sonar":
-            raise SessionError(manifest, "a camera may not be called 'sonar'")
-        _check_name(manifest, name, "camera name")
-        if not isinstance(spec, dict) or "intrinsics" not in spec:
-            raise SessionError(manifest, f"cameras.{name}: missing 'intrinsics: PATH'")
-        intr = resolve_inside(root, spec["intrinsics"], manifest, f"cameras.{name}.intrinsics")
-        bg = spec.get("background")
-        bgp = resolve_inside(root, bg, manifest, f"cameras.{name}.background") if bg is not None else None
-        win = spec.get("background_window", [0.0, None])
-        if not isinstance(win, list) or len(win) != 2:
-            raise SessionError(manifest, f"cameras.{name}.background_window must be [start_s, end_s]")
-        start = _num(manifest, win[0], f"cameras.{name}.background_window", positive=False)
-        end = None if win[1] is None else _num(manifest, win[1], f"cameras.{name}.background_window", positive=False)
-        cameras[name] = CameraSpec(name, intr, bgp, (start, end))
-
-    caps_raw = data.get("captures")
-    if not isinstance(caps_raw, list) or not caps_raw:
-        raise SessionError(manifest, "missing 'captures' (a list of {id, cloud, images})")
-    captures: list[Capture] = []
-    seen = set()
-    for i, c in enumerate(caps_raw):
-        if not isinstance(c, dict):
-            raise SessionError(manifest, f"captures[{i}] must be a mapping with id, cloud, images")
-        cid = c.get("id")
-        if cid is None or (not isinstance(cid, (str, int))) or str(cid).strip() == "":
-            raise SessionError(manifest, f"captures[{i}]: missing 'id'")
-        cid = str(cid)
-        _check_name(manifest, cid, f"captures[{i}].id")
-        if cid in seen:
-            raise SessionError(manifest, f"captures[{i}]: duplicate id '{cid}'")
-        seen.add(cid)
-        if "cloud" not in c:
-            raise SessionError(manifest, f"capture {cid}: missing 'cloud'")
-        cloud = resolve_inside(root, c["cloud"], manifest, f"capture {cid} cloud")
-        imgs_raw = c.get("images") or {}
-        if not isinstance(imgs_raw, dict):
-            raise SessionError(manifest, f"capture {cid}: 'images' must map camera names to paths")
-        imgs = {}
-        for cam, rel in imgs_raw.items():
-            if str(cam) not in cameras:
-                raise SessionError(manifest, f"capture {cid}: image for unknown camera '{cam}' (cameras: {', '.join(cameras)})")
-            imgs[str(cam)] = resolve_inside(root, rel, manifest, f"capture {cid} image {cam}")
-        captures.append(Capture(cid, cloud, imgs))
-
+    _check_format(manifest, data.get("format"))
+    diameter = _sphere_diameter(manifest, data.get("sphere"))
+    sonar, sound_speed, beam = _sonar_fields(manifest, data.get("sonar"))
+    cameras = _cameras(root, manifest, data.get("cameras"))
+    captures = _captures(root, manifest, data.get("captures"), cameras)
     measured = {}
     for k, v in _mapping(manifest, data.get("measured"), "measured").items():
         measured[str(k)] = _num(manifest, v, f"measured.{k}")
@@ -238,6 +158,115 @@ def load_session(folder: str | Path) -> Session:
         stereo=stereo,
         raw=data,
     )
+
+
+def _session_root(folder: str | Path) -> Path:
+    """The absolute session folder (``folder``, or the folder of a session.yaml given instead)."""
+    root = Path(folder)
+    try:
+        exists = root.exists()
+    except (OSError, ValueError):
+        exists = False
+    if not exists:
+        raise SessionError(root, "session folder not found")
+    if root.is_file() and root.name == MANIFEST:
+        root = root.parent
+    if not root.is_dir():
+        raise SessionError(root, "not a folder (give the session folder that holds session.yaml)")
+    return root.resolve()
+
+
+def _check_format(manifest: Path, fmt) -> None:
+    if fmt is not None and (not isinstance(fmt, str) or not fmt.startswith("sonar-camera-session/")):
+        raise SessionError(manifest, f"format {short_repr(fmt)} is not a sonar-camera-session format")
+    if isinstance(fmt, str) and fmt != SESSION_FORMAT:
+        raise SessionError(manifest, f"format {short_repr(fmt)} is not one this tool understands ({SESSION_FORMAT})")
+
+
+def _sphere_diameter(manifest: Path, sphere) -> float:
+    if not isinstance(sphere, dict) or "diameter" not in sphere:
+        raise SessionError(manifest, "missing 'sphere: {diameter: METRES}'")
+    diameter = _num(manifest, sphere["diameter"], "sphere.diameter")
+    if diameter > 5.0:
+        raise SessionError(manifest, f"sphere.diameter {diameter} m is implausible (metres expected, e.g. 0.22)")
+    return diameter
+
+
+def _sonar_fields(manifest: Path, sonar) -> tuple[dict, float | None, float]:
+    """(the ``sonar`` mapping, its sound speed or None, its beam width in degrees)."""
+    sonar = sonar or {}
+    if not isinstance(sonar, dict):
+        raise SessionError(manifest, "'sonar' must be a mapping")
+    sound_speed = _num(manifest, sonar["sound_speed"], "sonar.sound_speed") if sonar.get("sound_speed") is not None else None
+    if sound_speed is not None and not 1300 <= sound_speed <= 1700:
+        raise SessionError(manifest, f"sonar.sound_speed {sound_speed} m/s is outside water's 1300-1700 m/s")
+    beam = _num(manifest, sonar.get("beam_width_deg", 1.0), "sonar.beam_width_deg")
+    if beam > 20:
+        raise SessionError(manifest, f"sonar.beam_width_deg {beam} is implausible (degrees, e.g. 1.0)")
+    return sonar, sound_speed, beam
+
+
+def _cameras(root: Path, manifest: Path, cams_raw) -> dict[str, CameraSpec]:
+    if not isinstance(cams_raw, dict) or not cams_raw:
+        raise SessionError(manifest, "missing 'cameras' (a mapping of camera name to {intrinsics: ...})")
+    cameras: dict[str, CameraSpec] = {}
+    for name, spec in cams_raw.items():
+        name = str(name)
+        cameras[name] = _camera_spec(root, manifest, name, spec)
+    return cameras
+
+
+def _camera_spec(root: Path, manifest: Path, name: str, spec) -> CameraSpec:
+    if name == "sonar":
+        raise SessionError(manifest, "a camera may not be called 'sonar'")
+    _check_name(manifest, name, "camera name")
+    if not isinstance(spec, dict) or "intrinsics" not in spec:
+        raise SessionError(manifest, f"cameras.{name}: missing 'intrinsics: PATH'")
+    intr = resolve_inside(root, spec["intrinsics"], manifest, f"cameras.{name}.intrinsics")
+    bg = spec.get("background")
+    bgp = resolve_inside(root, bg, manifest, f"cameras.{name}.background") if bg is not None else None
+    win = spec.get("background_window", [0.0, None])
+    if not isinstance(win, list) or len(win) != 2:
+        raise SessionError(manifest, f"cameras.{name}.background_window must be [start_s, end_s]")
+    start = _num(manifest, win[0], f"cameras.{name}.background_window", positive=False)
+    end = None if win[1] is None else _num(manifest, win[1], f"cameras.{name}.background_window", positive=False)
+    return CameraSpec(name, intr, bgp, (start, end))
+
+
+def _captures(root: Path, manifest: Path, caps_raw, cameras: dict) -> list[Capture]:
+    if not isinstance(caps_raw, list) or not caps_raw:
+        raise SessionError(manifest, "missing 'captures' (a list of {id, cloud, images})")
+    captures: list[Capture] = []
+    seen: set = set()
+    for i, c in enumerate(caps_raw):
+        captures.append(_capture(root, manifest, i, c, cameras, seen))
+    return captures
+
+
+def _capture(root: Path, manifest: Path, i: int, c, cameras: dict, seen: set) -> Capture:
+    """Capture ``i`` of the manifest (its id is added to ``seen``, the ids so far)."""
+    if not isinstance(c, dict):
+        raise SessionError(manifest, f"captures[{i}] must be a mapping with id, cloud, images")
+    cid = c.get("id")
+    if cid is None or (not isinstance(cid, (str, int))) or str(cid).strip() == "":
+        raise SessionError(manifest, f"captures[{i}]: missing 'id'")
+    cid = str(cid)
+    _check_name(manifest, cid, f"captures[{i}].id")
+    if cid in seen:
+        raise SessionError(manifest, f"captures[{i}]: duplicate id '{cid}'")
+    seen.add(cid)
+    if "cloud" not in c:
+        raise SessionError(manifest, f"capture {cid}: missing 'cloud'")
+    cloud = resolve_inside(root, c["cloud"], manifest, f"capture {cid} cloud")
+    imgs_raw = c.get("images") or {}
+    if not isinstance(imgs_raw, dict):
+        raise SessionError(manifest, f"capture {cid}: 'images' must map camera names to paths")
+    imgs = {}
+    for cam, rel in imgs_raw.items():
+        if str(cam) not in cameras:
+            raise SessionError(manifest, f"capture {cid}: image for unknown camera '{cam}' (cameras: {', '.join(cameras)})")
+        imgs[str(cam)] = resolve_inside(root, rel, manifest, f"capture {cid} image {cam}")
+    return Capture(cid, cloud, imgs)
 
 
 def _plain_text(manifest: Path, value, what: str, default: str) -> str:
@@ -310,17 +339,23 @@ class SessionCheck:
 
 def validate_session(folder: str | Path) -> SessionCheck:
     """Open every file the manifest names; return the session and every problem found."""
-    from calib_core.io.clouds import load_cloud
-    from calib_core.io.images import load_background_frames, load_image
-    from calib_core.io.intrinsics import load_intrinsics
-
     try:
         session = load_session(folder)
     except SessionError as e:
         return SessionCheck(None, [e])
     problems: list[SessionError] = []
+    models = _check_cameras(session, problems)
+    points = _check_captures(session, models, problems)
+    _check_results(session, problems)
+    return SessionCheck(session, problems, models, points)
+
+
+def _check_cameras(session: Session, problems: list) -> dict[str, CameraModel]:
+    """Each camera's intrinsics and background (problems appended); the models that loaded."""
+    from calib_core.io.images import load_background_frames
+    from calib_core.io.intrinsics import load_intrinsics
+
     models: dict[str, CameraModel] = {}
-    points: dict[str, int] = {}
     for name, spec in session.cameras.items():
         try:
             models[name] = load_intrinsics(spec.intrinsics_path)
@@ -335,6 +370,15 @@ def validate_session(folder: str | Path) -> SessionCheck:
                     _check_size(spec.background_path, frames[0], models[name], problems)
             except SessionError as e:
                 problems.append(e)
+    return models
+
+
+def _check_captures(session: Session, models: dict, problems: list) -> dict[str, int]:
+    """Each capture's cloud and images (problems appended); the clouds' point counts."""
+    from calib_core.io.clouds import load_cloud
+    from calib_core.io.images import load_image
+
+    points: dict[str, int] = {}
     for cap in session.captures:
         try:
             points[cap.id] = len(load_cloud(cap.cloud_path))
@@ -347,20 +391,23 @@ def validate_session(folder: str | Path) -> SessionCheck:
                     _check_size(p, img, models[cam], problems)
             except SessionError as e:
                 problems.append(e)
+    return points
+
+
+def _check_results(session: Session, problems: list) -> None:
+    """detections.yaml and results/calibration.json, when present (problems appended)."""
     from calib_core.detections import load_detections
+    from calib_core.results import calibration_path, load_calibration
 
     try:
         load_detections(session)
     except SessionError as e:
         problems.append(e)
-    from calib_core.results import calibration_path, load_calibration
-
     try:
         if calibration_path(session).exists():
             load_calibration(calibration_path(session))
     except SessionError as e:
         problems.append(e)
-    return SessionCheck(session, problems, models, points)
 
 
 def _check_size(path: Path, img, cam: CameraModel, problems: list) -> None:

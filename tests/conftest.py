@@ -5,7 +5,7 @@ Reuse from any test:
     def test_x(make_session):
         root = make_session(tmp_path, n_captures=4, cameras=("cam1",))
 
-or import the plain functions: ``from conftest import build_session, tree_hash, run_cli``.
+or import the plain functions: ``from conftest import build_session, edit_yaml, tree_hash, run_cli``.
 """
 
 from __future__ import annotations
@@ -130,6 +130,15 @@ def make_session():
 def session_dir(tmp_path) -> Path:
     """A ready two-camera, four-capture session folder."""
     return build_session(tmp_path, n_captures=4, cameras=("cam1", "cam2"))
+
+
+def edit_yaml(path: str | Path, fn) -> None:
+    """Load the YAML file ``path``, let ``fn`` change the data in place, write it back
+    (key order kept): ``edit_yaml(root / "session.yaml", lambda d: d.update(name="x"))``."""
+    p = Path(path)
+    d = yaml.safe_load(p.read_text())
+    fn(d)
+    p.write_text(yaml.safe_dump(d, sort_keys=False, allow_unicode=True))
 
 
 def tree_hash(folder: str | Path) -> dict[str, str]:

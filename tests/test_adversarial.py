@@ -28,8 +28,7 @@ from typing import Callable
 import cv2
 import numpy as np
 import pytest
-import yaml
-from conftest import build_session, tree_hash
+from conftest import build_session, edit_yaml, tree_hash
 
 LAUNCHER = Path(__file__).with_name("adversarial_launch.py")
 PEAK_LIMIT_KB = 500 * 1024
@@ -61,10 +60,7 @@ def merge_laughs() -> str:
 
 
 def _edit_manifest(root: Path, fn) -> None:
-    p = root / "session.yaml"
-    d = yaml.safe_load(p.read_text())
-    fn(d)
-    p.write_text(yaml.safe_dump(d, sort_keys=False, allow_unicode=True))
+    edit_yaml(root / "session.yaml", fn)
 
 
 def _manifest_with(root: Path, prefix: str, key_line: str) -> None:

@@ -16,8 +16,7 @@ from typing import Callable
 
 import numpy as np
 import pytest
-import yaml
-from conftest import cli_command_exists, run_cli, tree_hash
+from conftest import cli_command_exists, edit_yaml, run_cli, tree_hash
 
 from calib_core.io.clouds import Cloud, save_cloud
 from calib_core.results import save_calibration
@@ -32,17 +31,11 @@ class Case:
 
 
 def _edit(root, fn):
-    p = root / "session.yaml"
-    d = yaml.safe_load(p.read_text())
-    fn(d)
-    p.write_text(yaml.safe_dump(d, sort_keys=False))
+    edit_yaml(root / "session.yaml", fn)
 
 
 def _intr(root, fn):
-    p = root / "intrinsics" / "cam1.yaml"
-    d = yaml.safe_load(p.read_text())
-    fn(d)
-    p.write_text(yaml.safe_dump(d, sort_keys=False))
+    edit_yaml(root / "intrinsics" / "cam1.yaml", fn)
 
 
 def _cut(path, frac):

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from calib_core.fusion_draw import draw_marker
+from calib_core.fusion.draw import draw_marker
 
 
 @pytest.mark.parametrize("uv", [(318.0, 120.0), (2.0, 2.0), (318.0, 238.0), (160.0, 120.0)])

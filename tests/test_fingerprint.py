@@ -9,7 +9,7 @@ import os
 import pytest
 
 from calib_core import fingerprint as fpm
-from calib_core import pipeline
+from calib_core.detect import entries
 from calib_core.detections import load_detections, save_detections
 from calib_core.pipeline import SessionData, detect_session
 from calib_core.session import load_session
@@ -55,8 +55,8 @@ def small(tmp_path_factory):
 def test_calibrate_reuses_matching_entries_and_redetects_only_changed_ones(small, monkeypatch):
     root, session, dets = small
     ran = []
-    real = pipeline.detect_one
-    monkeypatch.setattr(pipeline, "detect_one", lambda data, cid, sensor: ran.append((cid, sensor)) or real(data, cid, sensor))
+    real = entries.detect_one
+    monkeypatch.setattr(entries, "detect_one", lambda data, cid, sensor: ran.append((cid, sensor)) or real(data, cid, sensor))
     again = detect_session(SessionData(session), load_detections(session), workers=1)
     assert ran == [] and again == dets
     cap = session.captures[1]

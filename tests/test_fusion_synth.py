@@ -34,6 +34,13 @@ def _capture(session, gt, target: bool):
             yield cap, gt["captures"][cap.id]
 
 
+def _flange_view(session, gt):
+    """cam1's model, true T_cam_sonar, cloud and image of the first flange (non-target) capture."""
+    cap, _ = next(_capture(session, gt, False))
+    T = np.asarray(gt["cameras"]["cam1"]["T_cam_sonar"], float)
+    return session.camera_model("cam1"), T, load_cloud(cap.cloud_path).points_m, load_image(cap.image_paths["cam1"])
+
+
 def test_mask_of_the_sphere_cloud_covers_the_sphere(flange):
     session, gt = flange
     cam = session.camera_model("cam1")
@@ -67,12 +74,7 @@ def test_mask_of_the_sphere_cloud_covers_the_sphere(flange):
 def test_flange_back_surface_stays_uncoloured(flange):
     """A copy of every visible point pushed 0.4 m further along its camera ray is a back surface
     exactly behind the front one: none of it may take a colour, and the front keeps its colours."""
-    session, gt = flange
-    cam = session.camera_model("cam1")
-    T = np.asarray(gt["cameras"]["cam1"]["T_cam_sonar"], float)
-    cap, _ = next(_capture(session, gt, False))
-    P = load_cloud(cap.cloud_path).points_m
-    img = load_image(cap.image_paths["cam1"])
+    cam, T, P, img = _flange_view(*flange)
     colours, ok = F.colour_cloud(P, img, cam, T)
     assert ok.sum() > 50
     eye = invert_T(T)[:3, 3]
@@ -91,12 +93,7 @@ def test_flange_back_surface_stays_uncoloured(flange):
 
 def test_flange_isolated_front_points_are_coloured(flange):
     """A point with nothing nearer within 40 px (beyond any splat's reach) is seen by the camera."""
-    session, gt = flange
-    cam = session.camera_model("cam1")
-    T = np.asarray(gt["cameras"]["cam1"]["T_cam_sonar"], float)
-    cap, _ = next(_capture(session, gt, False))
-    P = load_cloud(cap.cloud_path).points_m
-    img = load_image(cap.image_paths["cam1"])
+    cam, T, P, img = _flange_view(*flange)
     _, ok = F.colour_cloud(P, img, cam, T)
     uv, depth, valid = F.project_cloud(P, T, cam)
     idx = np.flatnonzero(valid)

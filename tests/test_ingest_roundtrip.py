@@ -97,7 +97,7 @@ def test_bag_calibrates_like_the_folder(synth, imported):
 
 
 def test_report_section_names_the_drifting_capture(synth, imported):
-    from calib_core.report_motion import motion_section
+    from calib_core.report.motion import motion_section
 
     _, _, _, drift_id = synth
     html = motion_section(load_session(imported))

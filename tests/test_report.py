@@ -154,7 +154,7 @@ def test_report_shows_problems_and_escapes(tmp_path):
 def test_overlay_segments_the_sphere(scene):
     """The report's overlay comes from the reprojected cloud: the sphere's pixels are tinted."""
     root, truth = scene
-    from calib_core.report_captures import ReportOptions, capture_view
+    from calib_core.report.captures import ReportOptions, capture_view
 
     session = load_session(root)
     models = {c: session.camera_model(c) for c in session.cameras}
@@ -199,7 +199,7 @@ def test_cli_writes_default_path_and_handles_missing_or_bad_calibration(tmp_path
 
 # ---- rendering helpers ---------------------------------------------------------------
 def test_render_points_shows_the_nearest_point_per_pixel():
-    from calib_core.report_render import oblique_view, render_points
+    from calib_core.report.render import oblique_view, render_points
 
     xs, ys = np.meshgrid(np.linspace(-0.5, 0.5, 60), np.linspace(-0.5, 0.5, 60))
     near = np.column_stack([xs.ravel() * 0.5, ys.ravel() * 0.5, np.full(xs.size, 2.0)])
@@ -219,7 +219,7 @@ def test_render_points_shows_the_nearest_point_per_pixel():
 
 
 def test_crop_thumbnail_is_centred_on_the_pixel():
-    from calib_core.report_render import crop_thumbnail
+    from calib_core.report.render import crop_thumbnail
 
     img = np.zeros((300, 400, 3), np.uint8)
     img[150, 250] = 255

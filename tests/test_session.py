@@ -6,17 +6,14 @@ import os
 
 import numpy as np
 import pytest
-import yaml
+from conftest import edit_yaml
 
 from calib_core.errors import SessionError
 from calib_core.session import load_session, parse_transform, resolve_inside, validate_session
 
 
 def edit_manifest(root, fn):
-    p = root / "session.yaml"
-    d = yaml.safe_load(p.read_text())
-    fn(d)
-    p.write_text(yaml.safe_dump(d, sort_keys=False))
+    edit_yaml(root / "session.yaml", fn)
 
 
 def test_load_minimal_session(make_session, tmp_path):

@@ -63,8 +63,27 @@ def _check_ply(path: Path, head: bytes) -> int:
     m = re.search(r"^format\s+(\w+)", text, re.M)
     if not m or m.group(1) not in ("ascii", "binary_little_endian", "binary_big_endian"):
         raise SessionError(path, "PLY header has no valid 'format' line")
-    fmt = m.group(1)
-    elements: list[list] = []  # [name, count, [prop types] or None when a list property makes rows variable]
+    elements = _ply_elements(path, text)
+    vertex = next((e for e in elements if e[0] == "vertex"), None)
+    if vertex is None:
+        raise SessionError(path, "PLY file has no 'element vertex' (not a point cloud)")
+    n = vertex[1]
+    if n < 0:
+        raise SessionError(path, f"PLY header: negative vertex count {n}")
+    size = path.stat().st_size
+    for name, count, _ in elements:  # every row of every element takes at least one byte
+        if count < 0 or count > size:
+            raise SessionError(path, f"PLY header claims {count} '{name}' rows, more than the file's {size} bytes")
+    if m.group(1) != "ascii":
+        _check_ply_binary(path, elements, header_len, size)
+    else:
+        _check_ply_ascii(path, elements, vertex, header_len)
+    return n
+
+
+def _ply_elements(path: Path, text: str) -> list[list]:
+    """[name, count, [property types] or None when a list property makes rows variable] per element."""
+    elements: list[list] = []
     for line in text.splitlines():
         parts = line.split()
         if parts[:1] == ["element"] and len(parts) == 3:
@@ -79,39 +98,34 @@ def _check_ply(path: Path, head: bytes) -> int:
                 if len(parts) != 3 or parts[1] not in _PLY_SIZES:
                     raise SessionError(path, f"PLY header: bad property line {line!r}")
                 elements[-1][2].append(parts[1])
-    vertex = next((e for e in elements if e[0] == "vertex"), None)
-    if vertex is None:
-        raise SessionError(path, "PLY file has no 'element vertex' (not a point cloud)")
+    return elements
+
+
+def _check_ply_binary(path: Path, elements: list, header_len: int, size: int) -> None:
+    need = header_len
+    for name, count, props in elements:  # fixed-size elements up to (and including) the vertices
+        if props is None:
+            break
+        need += count * sum(_PLY_SIZES[p] for p in props)
+        if name == "vertex":
+            break
+    if size < need:
+        raise SessionError(path, f"file is truncated: {size} bytes, its header needs at least {need}")
+
+
+def _check_ply_ascii(path: Path, elements: list, vertex: list, header_len: int) -> None:
     n = vertex[1]
-    if n < 0:
-        raise SessionError(path, f"PLY header: negative vertex count {n}")
-    size = path.stat().st_size
-    for name, count, _ in elements:  # every row of every element takes at least one byte
-        if count < 0 or count > size:
-            raise SessionError(path, f"PLY header claims {count} '{name}' rows, more than the file's {size} bytes")
-    if fmt != "ascii":
-        need = header_len
-        for name, count, props in elements:  # fixed-size elements up to (and including) the vertices
-            if props is None:
-                break
-            need += count * sum(_PLY_SIZES[p] for p in props)
-            if name == "vertex":
-                break
-        if size < need:
-            raise SessionError(path, f"file is truncated: {size} bytes, its header needs at least {need}")
-    else:
-        before = 0
-        for name, count, _ in elements:
-            if name == "vertex":
-                break
-            before += count
-        rows, last = _count_rows(path, header_len)
-        if rows < before + n:
-            raise SessionError(path, f"file is truncated: header says {n} points, the file holds {max(rows - before, 0)} rows")
-        nprops = len(vertex[2]) if vertex[2] is not None else None
-        if n and nprops is not None and len(elements) == 1 and rows == n and len(last.split()) != nprops:
-            raise SessionError(path, f"file is truncated or corrupt: the last point row does not hold {nprops} values")
-    return n
+    before = 0
+    for name, count, _ in elements:
+        if name == "vertex":
+            break
+        before += count
+    rows, last = _count_rows(path, header_len)
+    if rows < before + n:
+        raise SessionError(path, f"file is truncated: header says {n} points, the file holds {max(rows - before, 0)} rows")
+    nprops = len(vertex[2]) if vertex[2] is not None else None
+    if n and nprops is not None and len(elements) == 1 and rows == n and len(last.split()) != nprops:
+        raise SessionError(path, f"file is truncated or corrupt: the last point row does not hold {nprops} values")
 
 
 def _check_pcd(path: Path, head: bytes) -> int:
@@ -121,7 +135,29 @@ def _check_pcd(path: Path, head: bytes) -> int:
     if not m:
         raise SessionError(path, "PCD header is incomplete (no 'DATA' line)")
     header_len = m.end()
-    text = head[:header_len].decode("latin-1")
+    names, sizes, counts, n = _pcd_fields(path, head[:header_len].decode("latin-1"))
+    kind = m.group(1).decode("latin-1").lower()
+    size = path.stat().st_size
+    row_bytes = sum(s * c for s, c in zip(sizes, counts))
+    if kind == "binary":
+        need = header_len + n * row_bytes
+        if size < need:
+            raise SessionError(path, f"file is truncated: {size} bytes, its header needs at least {need}")
+    elif kind == "binary_compressed":
+        _check_pcd_compressed(path, header_len, n, row_bytes, size)
+    elif kind == "ascii":
+        rows, last = _count_rows(path, header_len)
+        if rows < n:
+            raise SessionError(path, f"file is truncated: header says {n} points, the file holds {rows} rows")
+        if n and rows == n and len(last.split()) != sum(counts):
+            raise SessionError(path, f"file is truncated or corrupt: the last point row does not hold {sum(counts)} values")
+    else:
+        raise SessionError(path, f"PCD data kind '{kind}' is not supported (ascii, binary, binary_compressed)")
+    return n
+
+
+def _pcd_fields(path: Path, text: str) -> tuple[list[str], list[int], list[int], int]:
+    """(field names, sizes, counts, point count) of a PCD header, checked for consistency."""
     fields: dict[str, list[str]] = {}
     for line in text.splitlines():
         parts = line.split()
@@ -142,31 +178,19 @@ def _check_pcd(path: Path, head: bytes) -> int:
         raise SessionError(path, "PCD header is malformed (FIELDS, SIZE and COUNT disagree)")
     if not {"x", "y", "z"} <= set(names):
         raise SessionError(path, f"PCD file has no x y z fields (fields: {' '.join(names)})")
-    kind = m.group(1).decode("latin-1").lower()
-    size = path.stat().st_size
-    if kind == "binary":
-        need = header_len + n * sum(s * c for s, c in zip(sizes, counts))
-        if size < need:
-            raise SessionError(path, f"file is truncated: {size} bytes, its header needs at least {need}")
-    elif kind == "binary_compressed":
-        with open(path, "rb") as f:
-            f.seek(header_len)
-            sizes_raw = f.read(8)
-        if len(sizes_raw) < 8:
-            raise SessionError(path, "file is truncated: compressed PCD data is missing")
-        compressed = int.from_bytes(sizes_raw[:4], "little")
-        uncompressed = int.from_bytes(sizes_raw[4:], "little")
-        if uncompressed != n * sum(s * c for s, c in zip(sizes, counts)):
-            raise SessionError(path, f"PCD header is corrupt: {n} points need {n * sum(s * c for s, c in zip(sizes, counts))} "
-                                     f"bytes unpacked, the data block says {uncompressed}")
-        if size < header_len + 8 + compressed:
-            raise SessionError(path, f"file is truncated: {size} bytes, its header needs at least {header_len + 8 + compressed}")
-    elif kind == "ascii":
-        rows, last = _count_rows(path, header_len)
-        if rows < n:
-            raise SessionError(path, f"file is truncated: header says {n} points, the file holds {rows} rows")
-        if n and rows == n and len(last.split()) != sum(counts):
-            raise SessionError(path, f"file is truncated or corrupt: the last point row does not hold {sum(counts)} values")
-    else:
-        raise SessionError(path, f"PCD data kind '{kind}' is not supported (ascii, binary, binary_compressed)")
-    return n
+    return names, sizes, counts, n
+
+
+def _check_pcd_compressed(path: Path, header_len: int, n: int, row_bytes: int, size: int) -> None:
+    with open(path, "rb") as f:
+        f.seek(header_len)
+        sizes_raw = f.read(8)
+    if len(sizes_raw) < 8:
+        raise SessionError(path, "file is truncated: compressed PCD data is missing")
+    compressed = int.from_bytes(sizes_raw[:4], "little")
+    uncompressed = int.from_bytes(sizes_raw[4:], "little")
+    if uncompressed != n * row_bytes:
+        raise SessionError(path, f"PCD header is corrupt: {n} points need {n * row_bytes} "
+                                 f"bytes unpacked, the data block says {uncompressed}")
+    if size < header_len + 8 + compressed:
+        raise SessionError(path, f"file is truncated: {size} bytes, its header needs at least {header_len + 8 + compressed}")

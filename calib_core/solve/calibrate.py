@@ -24,7 +24,7 @@ from calib_core.results import CALIBRATION_FORMAT
 from calib_core.solve.consistency import consistency, consistency_phrase, is_warning
 from calib_core.solve.model import camera_data
 from calib_core.solve.refine import ROBUST_LOSSES, Link
-from calib_core.solve.scale import diameter_sigma, outline_sigma_px, range_rel_sigma
+from calib_core.solve.scale import diameter_sigma, outline_sigma_px, range_model, range_rel_sigma
 from calib_core.solve.shared_scale import shared_scale
 from calib_core.solve.rig import default_stereo_cov, find_stereo, solve_rig, table_i
 from calib_core.solve.single import CameraSolution, solve_camera
@@ -143,7 +143,7 @@ def _solve_cameras(session, dets, opts, progress):
                              corr.range_m, corr.range_sigma_m)
             sol = solve_camera(cd, estimate_scale=single_scale, robust=opts.robust, loo=opts.leave_one_out,
                                check_outliers=opts.check_outliers, seed=opts.seed,
-                               diameter_rel_sigma=range_rel_sigma(session, cd))
+                               range_model=range_model(session))
         except SessionError as e:
             why = "; ".join(f"{c}: {r}" for c, r in corr.skipped.items())
             errors.append(e.problem + (f" (skipped: {why})" if why else ""))
@@ -204,8 +204,11 @@ def _single_scale(session, sols: dict, n_cams: int, opts) -> dict:
         source = f"{only.name} alone"
         if only.scale_observable:
             source = f"{only.name}: sphere ranges from its apparent size ({_range_systematics(session)})"
-        return _scale_entry(only.scale, only.scale_sigma, only.scale_sigma is not None, source,
-                            only.scale_note, only.scale_observable, only.scale_test)
+        entry = _scale_entry(only.scale, only.scale_sigma, only.scale_sigma is not None, source,
+                             only.scale_note, only.scale_observable, only.scale_test)
+        if (only.scale_test or {}).get("outline_bias"):
+            entry["outline_bias"] = {only.name: only.scale_test["outline_bias"]}
+        return entry
     if len(sols) >= 2:
         shared = _shared(session, sols, opts)
         if shared is not None:
@@ -219,24 +222,31 @@ def _range_systematics(session) -> str:
     marked when assumed."""
     d, d_assumed = diameter_sigma(session)
     o, o_assumed = outline_sigma_px(session)
+    outline = (f"each camera's outline bias estimated with it (tolerance ±{o:.1f} px" if o > 0 else
+               "outline bias held at 0 (sphere.outline_sigma_px: 0")
     return (f"diameter {1000 * session.sphere_diameter_m:.1f} ± {1000 * d:.1f} mm"
-            f"{' (assumed: no sphere.diameter_sigma in session.yaml)' if d_assumed else ''}; outline systematic "
-            f"{o:.1f} px{' (assumed: no sphere.outline_sigma_px in session.yaml)' if o_assumed else ''}")
+            f"{' (assumed: no sphere.diameter_sigma in session.yaml)' if d_assumed else ''}; {outline}"
+            f"{'; assumed: no sphere.outline_sigma_px in session.yaml' if o_assumed else ''})")
 
 
 def _shared(session, sols: dict, opts) -> dict | None:
     """The range scale from several cameras' diameter evidence (calib_core.solve.shared_scale), or None."""
     cams = {c: (s.data, s.used, s.T_cam_sonar) for c, s in sols.items()}
     mode = "always" if opts.estimate_scale is True else "auto"
-    # one systematic for all: the RMS of the cameras' own (diameter + outline) systematics
-    rel = float(np.sqrt(np.mean([range_rel_sigma(session, s.data) ** 2 for s in sols.values()])))
-    sh = shared_scale(cams, mode, rel, opts.robust)
+    model = range_model(session)
+    # the systematic common to all cameras: the diameter's (each camera's outline bias is fitted)
+    rel = model.diameter_rel_sigma if model.estimates_outline else \
+        float(np.sqrt(np.mean([range_rel_sigma(session, s.data) ** 2 for s in sols.values()])))
+    sh = shared_scale(cams, mode, rel, opts.robust, model)
     if sh is None:
         return None
     source = (f"{' + '.join(sh.per_camera)}: sphere ranges from its apparent size, one scale for all "
               f"({_range_systematics(session)})")
     entry = _scale_entry(sh.value, sh.sigma if sh.estimated else None, sh.estimated, source, sh.note, True, sh.test)
     entry["per_camera"] = sh.per_camera
+    outlines = {c: v["outline_bias"] for c, v in sh.per_camera.items() if "outline_bias" in v}
+    if outlines:
+        entry["outline_bias"] = outlines
     entry["poses"] = sh.poses
     return entry
 

@@ -26,12 +26,14 @@ SCALE_TEST_ALPHA = 0.001
 # Tolerance of the sphere's diameter when session.yaml gives no sphere.diameter_sigma: 1 mm
 # (a float or ball measured with calipers or a tape to about a millimetre).
 DEFAULT_DIAMETER_SIGMA_M = 0.001
-# Systematic error of an outline's apparent radius on real photographs when session.yaml gives no
+# Tolerance of an outline's apparent radius on real photographs when session.yaml gives no
 # sphere.outline_sigma_px: blur through the camera's gamma curve, JPEG and limb shading move a
-# sphere's outline by about a pixel, the same way on every capture of a camera. Image ranges
-# (radius / sin(angular radius)) inherit it as a relative error of sigma_px / apparent radius, a
-# systematic that does not average down over captures, so it enters like the diameter tolerance.
-DEFAULT_OUTLINE_SIGMA_PX = 1.0
+# sphere's outline by a pixel or two (about +1.5 px on kinectnet-dev's k1), the same way on every
+# capture of a camera. Each camera's outline bias is estimated with the scale
+# (calib_core.solve.outline), this tolerance its prior: 2 px rather than 1 because a 1 px prior
+# pulled a true 1.5 px bias measurably towards 0 (bench_scale, BENCHMARKS.md); held at 0
+# (sphere.outline_sigma_px: 0) the ranges are taken as measured.
+DEFAULT_OUTLINE_SIGMA_PX = 2.0
 MAX_SCALE_SIGMA = 0.01  # a range scale known worse than 1 % is not worth estimating
 MODES = ("auto", "always", "never")
 
@@ -80,6 +82,15 @@ def range_rel_sigma(session, cd=None) -> float:
     return image_range_rel_sigma(session.sphere_diameter_m, diameter_sigma(session)[0], outline_sigma_px(session)[0], cd)
 
 
+def range_model(session):
+    """How the session's image ranges are modelled (:class:`calib_core.solve.outline.RangeModel`):
+    the diameter's relative tolerance, the sphere's radius and the outline bias's tolerance."""
+    from calib_core.solve.outline import RangeModel
+
+    return RangeModel(diameter_sigma(session)[0] / session.sphere_diameter_m, session.sphere_radius_m,
+                      outline_sigma_px(session)[0])
+
+
 def scale_mode(estimate_scale) -> str:
     """Option value -> mode: None / "auto" -> auto, True / "always" -> always, False / "never" -> never."""
     if estimate_scale is None:
@@ -119,6 +130,7 @@ class ScaleChoice:
     observable: bool
     note: str
     test: dict | None
+    res_free: RefineResult | None = None  # the fit with the scale free, when one was made
 
 
 def lr_test(res_fixed: RefineResult, res_free: RefineResult, systematic_var: float = 0.0) -> dict:
@@ -158,15 +170,15 @@ def choose_scale(prob_fixed: RigProblem, res_fixed: RefineResult, prob_free: Rig
     if mode == "always" or test["scaled_model_chosen"]:
         why = "forced (--scale)" if mode == "always" and not test["scaled_model_chosen"] else \
             f"the data show a scale error (F test p = {test['p_value']:.2g} < {SCALE_TEST_ALPHA:g})"
-        return ScaleChoice(res_free, prob_free, True, True, f"estimated: {why}", test)
+        return ScaleChoice(res_free, prob_free, True, True, f"estimated: {why}", test, res_free)
     if test["p_value"] < SCALE_TEST_ALPHA:  # a deviation, but known too poorly to apply
         return ScaleChoice(res_fixed, prob_fixed, False, True,
                            f"kept at 1: the data put it at {est} (F test p = {test['p_value']:.2g}), but only to "
                            f"±{100 * sig:.1f} %, worse than the {100 * MAX_SCALE_SIGMA:g} % worth applying "
-                           f"(--scale applies it)", test)
+                           f"(--scale applies it)", test, res_free)
     return ScaleChoice(res_fixed, prob_fixed, False, True,
                        f"kept at 1: the data show no scale error (free estimate {est}, F test p = "
-                       f"{test['p_value']:.2g} >= {SCALE_TEST_ALPHA:g})", test)
+                       f"{test['p_value']:.2g} >= {SCALE_TEST_ALPHA:g})", test, res_free)
 
 
 def diameter_term(problem: RigProblem, res: RefineResult, rel_sigma: float, robust: str | None = None,
@@ -183,10 +195,13 @@ def diameter_term(problem: RigProblem, res: RefineResult, rel_sigma: float, robu
 
     from calib_core.solve.model import log_so3
 
-    cd = problem.cams[0]
-    cd2 = dataclasses.replace(cd, range_m=cd.range_m * (1.0 + eps))
-    p2 = RigProblem([cd2], problem.masks, problem.links, estimate_scale=problem.estimate_scale,
-                    use_ranges=len(problem.range_rows) > 0)
+    if hasattr(problem, "with_range_factor"):
+        p2 = problem.with_range_factor(1.0 + eps)
+    else:
+        cd = problem.cams[0]
+        cd2 = dataclasses.replace(cd, range_m=cd.range_m * (1.0 + eps))
+        p2 = RigProblem([cd2], problem.masks, problem.links, estimate_scale=problem.estimate_scale,
+                        use_ranges=len(problem.range_rows) > 0)
     r2 = refine(p2, res.state, robust=robust, max_outer=4)
     T0, T1 = res.state.T_ref_sonar, r2.state.T_ref_sonar
     d = np.concatenate([log_so3(T1[:3, :3] @ T0[:3, :3].T), T1[:3, 3] - T0[:3, 3]])

@@ -11,7 +11,8 @@ from calib_core.solve.diagnostics import capture_rows, leave_one_out
 from calib_core.solve.model import CameraData, RigState, check_count, per_camera_stats
 from calib_core.solve.pnp import layout_warnings, ransac_pose
 from calib_core.solve.refine import RigProblem, refine
-from calib_core.solve.scale import ScaleChoice, choose_scale, diameter_term, scale_mode
+from calib_core.solve.range_scale import range_scale_choice
+from calib_core.solve.scale import choose_scale, scale_mode
 
 
 
@@ -62,25 +63,24 @@ class CameraSolution:
                  "kinds": [f["kind"] for f in r["flags"]]} for r in self.rows if r["flags"]]
 
 
-def _scale_choice(cd: CameraData, used, prob, res, estimate_scale, robust, diameter_rel_sigma: float):
+def _scale_choice(cd: CameraData, used, prob, res, estimate_scale, robust, range_model):
     """Range scale of one camera: through its ranges (sphere's apparent size) when every used row
-    has one, else (not observable) held at 1. Returns (ScaleChoice, extra covariance)."""
+    has one (:func:`calib_core.solve.range_scale.range_scale_choice`), else (not observable) held
+    at 1. Returns (ScaleChoice, extra covariance)."""
     mode = scale_mode(estimate_scale)
     if mode == "never" or not cd.has_ranges(used):
         return choose_scale(prob, res, RigProblem([cd], [used], estimate_scale=True), mode, robust), 0.0
-    prob_r = RigProblem([cd], [used], use_ranges=True)
-    res_r = refine(prob_r, res.state, robust=robust)
-    ch = choose_scale(prob_r, res_r, RigProblem([cd], [used], estimate_scale=True, use_ranges=True), mode, robust,
-                      systematic_var=diameter_rel_sigma**2)
-    if not ch.estimated:  # keep the solve without ranges: no diameter systematic in the pose
-        return ScaleChoice(res, prob, False, ch.observable, ch.note, ch.test), 0.0
-    return ch, diameter_term(ch.problem, ch.res, diameter_rel_sigma, robust)
+    return range_scale_choice(cd, used, prob, res, mode, robust, range_model)
 
 
 def solve_camera(cd: CameraData, estimate_scale: bool | str | None = None, robust: str | None = None, loo: bool = True,
                  check_outliers: bool = True, seed: int = 0, progress=None,
-                 diameter_rel_sigma: float = 0.0) -> CameraSolution:
+                 diameter_rel_sigma: float = 0.0, range_model=None) -> CameraSolution:
     """Calibrate one camera to the sonar from its correspondences (see the package doc).
+
+    Image ranges (when every used row has one) see the range scale: ``range_model`` (a
+    :class:`calib_core.solve.outline.RangeModel`) says how, else ``diameter_rel_sigma`` is their
+    fixed relative systematic.
 
     Raises SessionError when fewer than 4 correspondences are usable.
     """
@@ -93,7 +93,8 @@ def solve_camera(cd: CameraData, estimate_scale: bool | str | None = None, robus
     prob = RigProblem([cd], [used])
     res = refine(prob, state0, robust=robust)
     cov_scale, scale_sigma = None, None
-    ch, extra = _scale_choice(cd, used, prob, res, estimate_scale, robust, diameter_rel_sigma)
+    ch, extra = _scale_choice(cd, used, prob, res, estimate_scale, robust,
+                              diameter_rel_sigma if range_model is None else range_model)
     res, prob, scale_note = ch.res, ch.problem, ch.note
     if scale_mode(estimate_scale) == "always" and not ch.observable:
         warnings.append(f"{cd.name}: range scale {scale_note}; keeping it at 1")

@@ -55,6 +55,39 @@ class Scene:
         return np.array([p.material.albedo for p in self.primitives] + [(0.0, 0.0, 0.0)], float)
 
 
+def _candidate_rays(bound, o: np.ndarray, single: bool, d: np.ndarray, best: np.ndarray):
+    """Indices of the rays that may hit a primitive with bounding sphere ``bound`` (centre,
+    radius): the ray's line passes within the radius and the sphere is neither behind nor
+    beyond the nearest hit so far. None (every ray) for an unbounded primitive."""
+    if bound is None:
+        return None
+    c, R = bound
+    oc = o - c
+    if single:
+        b = d @ oc
+        dist2 = oc @ oc - b * b
+    else:
+        b = _dot(oc, d)
+        dist2 = _dot(oc, oc) - b * b
+    return np.nonzero((dist2 <= R * R) & (-b - R < best) & (-b + R > 0))[0]
+
+
+def _keep_nearer(best, hit, normal, i: int, idx, t, n) -> None:
+    """Record primitive ``i``'s hits ``t`` (normals ``n``) of the rays ``idx`` (None: all)
+    where they are nearer than the best so far (in place)."""
+    if idx is None:
+        better = t < best
+        best[better] = t[better]
+        hit[better] = i
+        normal[better] = n[better]
+    else:
+        better = t < best[idx]
+        sel = idx[better]
+        best[sel] = t[better]
+        hit[sel] = i
+        normal[sel] = n[better]
+
+
 def raycast(scene: Scene, origins: np.ndarray, dirs: np.ndarray, acoustic: bool = False,
             max_range_m: float = INF):
     """Cast rays (world frame, metres; ``dirs`` unit) against every primitive.
@@ -68,46 +101,18 @@ def raycast(scene: Scene, origins: np.ndarray, dirs: np.ndarray, acoustic: bool 
     N = len(d)
     o_in = np.asarray(origins, float)
     single = o_in.size == 3  # one origin for every ray (a camera, a sonar): cheap culling
-    o_pt = o_in.reshape(3) if single else None
-    o_all = None if single else np.ascontiguousarray(np.broadcast_to(o_in, (N, 3)))
-
-    def orig(idx):
-        if single:
-            return np.broadcast_to(o_pt, (N if idx is None else len(idx), 3))
-        return o_all if idx is None else o_all[idx]
-
+    o = o_in.reshape(3) if single else np.ascontiguousarray(np.broadcast_to(o_in, (N, 3)))
     best = np.full(N, float(max_range_m))
     hit = np.full(N, -1, dtype=np.int64)
     normal = np.zeros((N, 3))
     for i, prim in enumerate(scene.primitives):
-        bd = prim.bound()
-        idx = None
-        if bd is not None:
-            c, R = bd
-            if single:
-                oc = o_pt - c
-                b = d @ oc
-                dist2 = oc @ oc - b * b
-            else:
-                oc = o_all - c
-                b = _dot(oc, d)
-                dist2 = _dot(oc, oc) - b * b
-            # candidates: the ray's line passes within R and the sphere is not behind / too far
-            idx = np.nonzero((dist2 <= R * R) & (-b - R < best) & (-b + R > 0))[0]
-            if idx.size == 0:
-                continue
+        idx = _candidate_rays(prim.bound(), o, single, d, best)
+        if idx is not None and idx.size == 0:
+            continue
         if idx is None:
-            t, n = prim.intersect(orig(None), d, acoustic)
-            better = t < best
-            best = np.where(better, t, best)
-            hit[better] = i
-            normal[better] = n[better]
+            t, n = prim.intersect(np.broadcast_to(o, (N, 3)) if single else o, d, acoustic)
         else:
-            t, n = prim.intersect(orig(idx), d[idx], acoustic)
-            better = t < best[idx]
-            sel = idx[better]
-            best[sel] = t[better]
-            hit[sel] = i
-            normal[sel] = n[better]
+            t, n = prim.intersect(np.broadcast_to(o, (len(idx), 3)) if single else o[idx], d[idx], acoustic)
+        _keep_nearer(best, hit, normal, i, idx, t, n)
     best[hit < 0] = INF
     return best, hit, normal

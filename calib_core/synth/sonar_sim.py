@@ -77,6 +77,44 @@ def scan_angles(cfg: SonarConfig) -> tuple[np.ndarray, np.ndarray]:
     return az, el
 
 
+def _sub_rays(A: np.ndarray, centre: np.ndarray, offs: np.ndarray) -> np.ndarray:
+    """(P*B*S,3) unit sonar-frame sub-ray directions: each beam centre line (azimuths ``A``)
+    tilted by the cone offsets ``offs`` in the beam's local (azimuth, elevation) tangent frame."""
+    e_az = np.stack([-np.sin(A), np.cos(A), np.zeros_like(A)], -1).reshape(-1, 3)
+    e_el = np.cross(centre, e_az)  # d centre / d elevation
+    e_el /= np.linalg.norm(e_el, axis=1, keepdims=True)
+    sub = (np.cos(np.hypot(offs[:, 0], offs[:, 1]))[None, :, None] * centre[:, None, :]
+           + np.sinc(np.hypot(offs[:, 0], offs[:, 1]) / np.pi)[None, :, None]
+           * (offs[None, :, 0, None] * e_az[:, None, :] + offs[None, :, 1, None] * e_el[:, None, :]))
+    sub /= np.linalg.norm(sub, axis=2, keepdims=True)
+    return sub.reshape(-1, 3)
+
+
+def _beam_returns(t, hit, n, d_world, refl, n_beams: int, n_sub: int, cfg: SonarConfig, rng) -> tuple:
+    """One batch of beams: the first strong return among each beam's sub-rays, plus spurious
+    returns. Returns (kept beams mask, their reported ranges, their intensities)."""
+    strong = (hit >= 0) & (refl[hit] >= cfg.min_reflectivity) & (t >= cfg.min_range_m)
+    t = np.where(strong, t, np.inf).reshape(n_beams, n_sub)
+    j = np.argmin(t, axis=1)
+    rows = np.arange(n_beams)
+    rng_m = t[rows, j]
+    ok = np.isfinite(rng_m)
+    hid = hit.reshape(n_beams, n_sub)[rows, j]
+    nn = n.reshape(n_beams, n_sub, 3)[rows, j]
+    dsub = d_world.reshape(n_beams, n_sub, 3)[rows, j]
+    cosi = np.abs(np.einsum("ij,ij->i", nn, dsub))
+    i_val = refl[hid] * (0.3 + 0.7 * cosi)
+    # spurious returns (noise, fish, bubbles): random beams, random ranges
+    spur = (~ok) & (rng.random(n_beams) < cfg.spurious_rate)
+    rng_m = np.where(spur, rng.uniform(cfg.min_range_m, cfg.max_range_m, n_beams), rng_m)
+    i_val = np.where(spur, rng.uniform(0.05, 0.5, n_beams), i_val)
+    keep = ok | spur
+    r_rep = (rng_m[keep] + cfg.range_noise_m * rng.standard_normal(int(keep.sum()))) * cfg.range_scale
+    if cfg.range_quantum_m > 0:
+        r_rep = np.round(r_rep / cfg.range_quantum_m) * cfg.range_quantum_m
+    return keep, r_rep, np.clip(i_val[keep] + cfg.intensity_noise * rng.standard_normal(int(keep.sum())), 0, None)
+
+
 def simulate_scan(scene: Scene, T_world_sonar: np.ndarray, cfg: SonarConfig, rng: np.random.Generator,
                   progress=None) -> Cloud:
     """Simulate one full pan scan; returns the cloud in the SONAR frame (x fwd, y left, z up).
@@ -86,45 +124,17 @@ def simulate_scan(scene: Scene, T_world_sonar: np.ndarray, cfg: SonarConfig, rng
     """
     az, el = scan_angles(cfg)
     offs = cone_offsets(cfg.sub_rays, np.deg2rad(cfg.beam_width_deg) / 2)  # (S,2)
-    R, origin = T_world_sonar[:3, :3], T_world_sonar[:3, 3]
     refl = scene.reflectivity()
     pts, inten = [], []
     batch = max(1, 40_000 // (cfg.n_beams * len(offs)) * 10)
     for s in range(0, len(az), batch):
-        a = az[s:s + batch]
-        A, E = np.meshgrid(a, el, indexing="ij")  # (P,B)
+        A, E = np.meshgrid(az[s:s + batch], el, indexing="ij")  # (P,B)
         centre = beam_directions(A, E).reshape(-1, 3)  # (P*B,3)
-        # sub-rays: offsets in the beam's local (azimuth, elevation) tangent frame
-        e_az = np.stack([-np.sin(A), np.cos(A), np.zeros_like(A)], -1).reshape(-1, 3)
-        e_el = np.cross(centre, e_az)  # d centre / d elevation
-        e_el /= np.linalg.norm(e_el, axis=1, keepdims=True)
-        sub = (np.cos(np.hypot(offs[:, 0], offs[:, 1]))[None, :, None] * centre[:, None, :]
-               + np.sinc(np.hypot(offs[:, 0], offs[:, 1]) / np.pi)[None, :, None]
-               * (offs[None, :, 0, None] * e_az[:, None, :] + offs[None, :, 1, None] * e_el[:, None, :]))
-        sub /= np.linalg.norm(sub, axis=2, keepdims=True)
-        d_world = sub.reshape(-1, 3) @ R.T
-        t, hit, n = raycast(scene, origin, d_world, acoustic=True, max_range_m=cfg.max_range_m)
-        strong = (hit >= 0) & (refl[hit] >= cfg.min_reflectivity) & (t >= cfg.min_range_m)
-        t = np.where(strong, t, np.inf).reshape(len(centre), len(offs))
-        j = np.argmin(t, axis=1)
-        rows = np.arange(len(centre))
-        rng_m = t[rows, j]
-        ok = np.isfinite(rng_m)
-        hid = hit.reshape(len(centre), len(offs))[rows, j]
-        nn = n.reshape(len(centre), len(offs), 3)[rows, j]
-        dsub = d_world.reshape(len(centre), len(offs), 3)[rows, j]
-        cosi = np.abs(np.einsum("ij,ij->i", nn, dsub))
-        i_val = refl[hid] * (0.3 + 0.7 * cosi)
-        # spurious returns (noise, fish, bubbles): random beams, random ranges
-        spur = (~ok) & (rng.random(len(centre)) < cfg.spurious_rate)
-        rng_m = np.where(spur, rng.uniform(cfg.min_range_m, cfg.max_range_m, len(centre)), rng_m)
-        i_val = np.where(spur, rng.uniform(0.05, 0.5, len(centre)), i_val)
-        keep = ok | spur
-        r_rep = (rng_m[keep] + cfg.range_noise_m * rng.standard_normal(int(keep.sum()))) * cfg.range_scale
-        if cfg.range_quantum_m > 0:
-            r_rep = np.round(r_rep / cfg.range_quantum_m) * cfg.range_quantum_m
+        d_world = _sub_rays(A, centre, offs) @ T_world_sonar[:3, :3].T
+        t, hit, n = raycast(scene, T_world_sonar[:3, 3], d_world, acoustic=True, max_range_m=cfg.max_range_m)
+        keep, r_rep, i_kept = _beam_returns(t, hit, n, d_world, refl, len(centre), len(offs), cfg, rng)
         pts.append(centre[keep] * r_rep[:, None])
-        inten.append(np.clip(i_val[keep] + cfg.intensity_noise * rng.standard_normal(int(keep.sum())), 0, None))
+        inten.append(i_kept)
         if progress is not None:
             progress(min(s + batch, len(az)), len(az), "sonar scan")
     P = np.concatenate(pts) if pts else np.zeros((0, 3))

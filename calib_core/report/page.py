@@ -1,7 +1,7 @@
 """Self-contained HTML report of a session and its calibration (``sonarcal report``).
 
-One HTML file, no network: CSS inline, plots as inline SVG (:mod:`calib_core.report_svg`),
-pictures as base64 data URIs (:mod:`calib_core.report_render`). Sections: session summary,
+One HTML file, no network: CSS inline, plots as inline SVG (:mod:`calib_core.report.svg`),
+pictures as base64 data URIs (:mod:`calib_core.report.render`). Sections: session summary,
 pose with 1- and 3-sigma uncertainty, the paper's Table I (when the calibration has
 ``table_i``), residual plots, every detection with a thumbnail and its status history,
 segmentation overlays (Fig. 3) and coloured clouds (Figs. 4-5).
@@ -23,9 +23,9 @@ from scipy.spatial.transform import Rotation
 from calib_core import __version__
 from calib_core.errors import SessionError
 from calib_core.markup import escape_html
-from calib_core.report_captures import CaptureView, ReportOptions, calibrated_T, capture_view, range_scale
-from calib_core.report_motion import motion_section
-from calib_core.report_svg import bar_chart, scatter_residuals, sigma_chart
+from calib_core.report.captures import CaptureView, ReportOptions, calibrated_T, capture_view, range_scale
+from calib_core.report.motion import motion_section
+from calib_core.report.svg import bar_chart, scatter_residuals, sigma_chart
 
 __all__ = ["ReportOptions", "build_report", "write_report"]
 

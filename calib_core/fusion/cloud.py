@@ -2,7 +2,8 @@
 
 - :func:`project_cloud`: sonar points -> raw pixels of one camera (eq. 11).
 - :func:`segmentation_mask`: pixels within a radius of a reprojected point (Fig. 3).
-- :func:`overlay` and the ``draw_*`` helpers: images for people (cv2, anti-aliased).
+- :func:`~calib_core.fusion.draw.overlay` and the ``draw_*`` helpers (:mod:`calib_core.fusion.draw`):
+  images for people (cv2, anti-aliased).
 - :func:`colour_cloud`: each point takes the colour of its pixel, with a splatted
   z-buffer so back surfaces stay uncoloured (Figs. 4 and 5);
   :func:`colour_cloud_multi` picks, per point, the best of several cameras.
@@ -12,7 +13,7 @@ maps them into the OpenCV camera frame; ``uv_px`` are raw (distorted) pixel
 coordinates with pixel centres at integers; ``depth_m`` is the camera-frame z.
 Images are RGB uint8 (H,W,3). Everything is vectorised numpy/OpenCV so that a
 1M-point cloud at 1920x1080 takes tens of milliseconds (benchmarks/bench_fusion.py).
-The z-buffer machinery lives in :mod:`calib_core.fusion_zbuffer`, drawing in :mod:`calib_core.fusion_draw`.
+The z-buffer machinery lives in :mod:`calib_core.fusion.zbuffer`, drawing in :mod:`calib_core.fusion.draw`.
 """
 
 from __future__ import annotations
@@ -23,8 +24,7 @@ import cv2
 import numpy as np
 
 from calib_core.camera import CameraModel
-from calib_core.fusion_draw import draw_detection, draw_ellipse, draw_marker, overlay  # noqa: F401  (public API)
-from calib_core.fusion_zbuffer import CELL_SHIFT, depth_buffer, disk_kernel, pixel_index, splatted_zbuffer  # noqa: F401  (depth_buffer: public API)
+from calib_core.fusion.zbuffer import CELL_SHIFT, disk_kernel, pixel_index, splatted_zbuffer
 
 _MAX_REMAP_COLS = 4096  # cv2.remap needs maps smaller than SHRT_MAX per side
 
@@ -172,7 +172,7 @@ def segmentation_mask(cam: CameraModel, uv_px: np.ndarray, radius_px: float,
 def visible_points(uv_px, depth_m, valid, cam: CameraModel, splat_radius_px="auto",
                    depth_tolerance_m: float = 0.05, slope: float = 1.0) -> np.ndarray:
     """(N,) bool: valid points within a depth tolerance of the splatted nearest depth
-    (``splat_radius_px``: a number of pixels, or "auto", see :func:`depth_buffer`).
+    (``splat_radius_px``: a number of pixels, or "auto", see :func:`calib_core.fusion.zbuffer.depth_buffer`).
 
     The tolerance is ``depth_tolerance_m`` plus ``slope`` x the splat's lateral reach in metres
     (radius_px x depth / fx): a surface inclined by atan(slope) (45 deg by default) must not

@@ -5,7 +5,7 @@ from __future__ import annotations
 from html import escape
 
 from calib_core.ingest.motion import motion_summary_rows
-from calib_core.report_svg import bar_chart
+from calib_core.report.svg import bar_chart
 
 HEADER = ["capture", "camera", "frames with sphere", "motion px", "motion across view", "target"]
 
