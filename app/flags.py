@@ -70,12 +70,13 @@ class Diagnoser:
         session, dets, _cal = st.snapshot()
         with st.lock:
             data = st.data
-        flags = diagnose_session(data, dets)
+        notes: list[str] = []
+        flags = diagnose_session(data, dets, notes)
         with st.lock:
             if st.session is not session:
                 return  # another session was opened meanwhile
             st.flags = flags
-            st.flags_note = "" if any(st.session.cameras) else "no camera"
+            st.flags_note = " ".join(notes) if notes else ("" if any(st.session.cameras) else "no camera")
         st.bus.publish("flags")
 
 

@@ -70,7 +70,7 @@ class ImagePanels:
         self.viewing = wb.state.modes.viewing  # client id -> (camera, eye) after "View through"
         self.focus_cam: str | None = None  # while someone looks through a camera, other boards hide
         for kind in ("selection", "detections", "calibration", "overlay", "flags"):
-            wb.refresher.on(kind, self.refresh)
+            wb.refresher.on(kind, self.refresh, heavy=True)  # decodes and sends images: after the review table
         wb.refresher.on("calibration", self.follow_views)
         wb.state.bus.subscribe("focus", self.on_focus)
 

@@ -51,8 +51,8 @@ class PlanPanel:
         for h in (self.rot, self.trans, self.criterion, self.count, self.show):
             h.on_update(lambda _e: wb.refresher.mark("plan"))
         for kind in ("detections", "calibration", "plan"):
-            wb.refresher.on(kind, self.refresh)
-        wb.refresher.on("selection", self.redraw_images)  # the shown image follows the selected capture
+            wb.refresher.on(kind, self.refresh, heavy=True)  # loads every cloud, solves, draws images
+        wb.refresher.on("selection", self.redraw_images, heavy=True)  # the shown image follows the selected capture
         wb.refresher.on("session", self.rebuild)
         self.images: dict = {}
         self.nodes: list = []

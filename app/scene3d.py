@@ -81,8 +81,8 @@ class Scene3D:
         wb.state.bus.subscribe("focus", self.on_focus)
         wb.state.bus.subscribe("fused", self.on_fused)
         r = wb.refresher
-        r.on("selection", self.refresh_clouds)
-        r.on("clouds", self.refresh_clouds)
+        r.on("selection", self.refresh_clouds, heavy=True)  # loads and sends clouds: after the review table
+        r.on("clouds", self.refresh_clouds, heavy=True)
         for kind in ("detections", "calibration", "selection"):
             r.on(kind, self.refresh_markers)
         for kind in ("calibration", "selection"):

@@ -25,6 +25,7 @@ from calib_core.markup import escape_md
 log = logging.getLogger("sonarcal.app")
 FIRST_CLIENT_WAIT_S = 2.0  # how long detection waits for a first page before starting anyway
 DETECT_GRACE_S = 1.0  # after the first page connects: let it receive the session first
+HEAVY_GRACE_S = 0.3  # after the first page connects: images and clouds follow its panel
 
 
 class Workbench:
@@ -40,20 +41,38 @@ class Workbench:
 
     def __init__(self, session_path=None, host: str = "127.0.0.1", port: int = 8080,
                  allowed_roots=None, uploads_dir=None, verbose: bool = False, token: str | None = "auto"):
-        from app.flags import Diagnoser, FlagsPanel
-        from app.fused import FusedPanel
-        from app.images import ImagePanels
-        from app.plan_panel import PlanPanel
-        from app.review import ReviewPanel
-        from app.scene3d import Scene3D
-        from app.session_panel import SessionPanel
-        from app.solve_panel import SolvePanel
-
         self.uploads = UploadStore(uploads_dir)
         self.uploads_dir = self.uploads.root
         if allowed_roots is None:
             allowed_roots = [Path.cwd()] + ([Path(session_path).resolve().parent] if session_path else [])
         self.state = WorkbenchState(allowed_roots=list(allowed_roots) + [self.uploads_dir])
+        self.bus = self.state.bus
+        self._stopped = False
+        self._start_server(host, port, verbose, token)
+        self.refresher = Refresher(on_error=lambda kind, e: notify(self.server, None, f"Display of {kind} failed", error_text(e)))
+        self.refresher.hold()  # images and clouds wait until the first page has its panel (or a moment)
+        self.jobs = JobRunner(on_progress=self._progress, on_error=self._job_error)
+        self._first_client = threading.Event()  # detection waits for the first page to load (or a moment)
+        self._detect_due = threading.Event()
+        self._detect_due.set()
+        self._framed: set = set()  # clients whose view was framed on the open session
+        self._build_frame()
+        self._build_panels()
+        self.refresher.on("session", self._on_session)
+        self.refresher.on("after-session", self._after_session)
+        self.refresher.on("home", self._frame_new_clients, heavy=True)  # framing may load a cloud
+        self.state.subscribe(self.refresher.mark)  # every named state event asks for a refresh of that name
+        self.server.on_client_connect(self._on_connect)
+        threading.Thread(target=self._release_after_first_page, name="workbench-first-page", daemon=True).start()
+        if session_path is not None:
+            try:
+                self.open_session(session_path)
+            except BaseException:
+                self.stop()
+                raise
+
+    def _start_server(self, host: str, port: int, verbose: bool, token: str | None) -> None:
+        """The viser server behind the Origin/token guard, its theme and panel placement."""
         self.guard = ConnectionGuard(new_token() if token == "auto" else token, host)
         self.requested_port = port
         self.server = start_guarded(self.guard, lambda: viser.ViserServer(
@@ -62,20 +81,17 @@ class Workbench:
         self.port_warning = port_taken_warning(port, self.guard.port)
         if self.port_warning:
             log.warning(self.port_warning)
-        self._stopped = False
         self.server.gui.configure_theme(control_width="large", dark_mode=False, show_share_button=False)
         self.server.gui.main_panel.dock_right()  # beside the 3D view, so the view is never covered
-        self.refresher = Refresher(on_error=lambda kind, e: notify(self.server, None, f"Display of {kind} failed", error_text(e)))
-        self.jobs = JobRunner(on_progress=self._progress, on_error=self._job_error)
-        self._first_client = threading.Event()  # detection waits for the first page to load (or a moment)
-        self._detect_due = threading.Event()
-        self._detect_due.set()
 
+    def _build_frame(self) -> None:
+        """Title, progress, the Solve button (above the tabs: the review loop never switches tab
+        to solve) and the tabs."""
         gui = self.server.gui
         self.title = gui.add_markdown("**sonarcal workbench**: no session open")
         self.progress_label = gui.add_markdown("", visible=False)
         self.progress = gui.add_progress_bar(0.0, visible=False, animated=True)
-        self.solve_button = gui.add_button(  # above the tabs: the review loop never switches tab to solve
+        self.solve_button = gui.add_button(
             "Solve", color="blue", hint="Detect what is not validated, solve every camera, save results/calibration.json")
         tabs = gui.add_tab_group()
         self.tab_review = tabs.add_tab("Review")
@@ -85,7 +101,17 @@ class Workbench:
         self.tab_session = tabs.add_tab("Session")
         self.tab_plan = tabs.add_tab("Plan")
 
-        self.bus = self.state.bus
+    def _build_panels(self) -> None:
+        from app.flags import Diagnoser, FlagsPanel
+        from app.fused import FusedPanel
+        from app.images import ImagePanels
+        from app.motion_panel import MotionPanel
+        from app.plan_panel import PlanPanel
+        from app.review import ReviewPanel
+        from app.scene3d import Scene3D
+        from app.session_panel import SessionPanel
+        from app.solve_panel import SolvePanel
+
         self.scene3d = Scene3D(self)
         self.images = ImagePanels(self)
         self.flags = FlagsPanel(self)
@@ -94,21 +120,8 @@ class Workbench:
         self.fused = FusedPanel(self)
         self.session_panel = SessionPanel(self)
         self.plan = PlanPanel(self, self.tab_plan)
-        from app.motion_panel import MotionPanel  # the target-motion track of an imported session
-
-        self.motion_panel = MotionPanel(self)
-
-        self.refresher.on("session", self._on_session)
-        self.refresher.on("after-session", self._after_session)
-        self.state.subscribe(self.refresher.mark)  # every named state event asks for a refresh of that name
+        self.motion_panel = MotionPanel(self)  # the target-motion track of an imported session
         self.diagnoser = Diagnoser(self.state)
-        self.server.on_client_connect(self._on_connect)
-        if session_path is not None:
-            try:
-                self.open_session(session_path)
-            except BaseException:
-                self.stop()
-                raise
 
     # ---- lifecycle -------------------------------------------------------
     @property
@@ -135,7 +148,8 @@ class Workbench:
             return
         self._stopped = True
         try:
-            self.refresher.wait_idle(10)
+            self.jobs.cancel(10)  # a running detection stops at its next step; nothing half-written
+            self.refresher.wait_idle(10, owed=False)  # what is held for a first page is dropped
             self.refresher.stop()
             diagnoser = getattr(self, "diagnoser", None)
             if diagnoser is not None:
@@ -192,9 +206,8 @@ class Workbench:
         self.solve.refresh()
         self.fused.rebuild()
         self.session_panel.refresh()
-        self.refresher.mark("detections", "calibration", "selection", "after-session")
-        for client in self.server.get_clients().values():
-            self.scene3d.home_view(client)
+        self._framed.clear()  # every page is framed on the new session (once its cloud may load)
+        self.refresher.mark("detections", "calibration", "selection", "after-session", "home")
 
     def _after_session(self) -> None:
         """Once the new session is on screen, detect what detections.yaml lacks (in the background),
@@ -210,7 +223,7 @@ class Workbench:
         try:
             if self._first_client.wait(FIRST_CLIENT_WAIT_S):
                 time.sleep(DETECT_GRACE_S)
-            if self.state.session is session and self.jobs.running is None:
+            if self.state.session is session and self.jobs.running is None and not self._stopped:
                 self.start_detection(pending, redetect_auto=False)
         except Exception as e:  # reported in the page
             self._job_error("detection", e)
@@ -218,8 +231,23 @@ class Workbench:
             self._detect_due.set()
 
     def _on_connect(self, client: viser.ClientHandle) -> None:
-        self.scene3d.home_view(client)
         self._first_client.set()
+        self.refresher.mark("home")
+
+    def _frame_new_clients(self) -> None:
+        """Frame the open session in every page not framed on it yet (a new page, a new session)."""
+        for cid, client in self.server.get_clients().items():
+            if cid not in self._framed:
+                self._framed.add(cid)
+                self.scene3d.home_view(client)
+
+    def _release_after_first_page(self) -> None:
+        """Let images and clouds go once the first page has received its panel (it connects
+        after its 3D view is up), or after FIRST_CLIENT_WAIT_S without a page: the page is
+        usable sooner when they do not compete with it for the CPU."""
+        if self._first_client.wait(FIRST_CLIENT_WAIT_S):
+            time.sleep(HEAVY_GRACE_S)
+        self.refresher.release()
 
     # ---- jobs --------------------------------------------------------------
     def _progress(self, name: str, pct: float, label: str) -> None:

@@ -1,7 +1,7 @@
 """Fit the image detection's probability model (calib_core/detect/image_score.py COEF).
 
-Training data: synthetic cases (calib_core.synth.image_cases) of every kind, seeds
-[0, N) at 0.4 x 1080p, each rendered with the ball and without it (with and without the
+Training data: synthetic cases (calib_core.synth.image_cases) of every kind (clutter, big,
+turbid, chair), seeds [0, N) at 0.4 x 1080p, each rendered with the ball and without it (with and without the
 background where the case has one). A detection within 3 px of the true centre is a
 positive; any other detection (elsewhere, or in an image without the ball) a negative.
 Prints the coefficients to paste into image_score.COEF and the training reliability.
@@ -21,7 +21,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from calib_core.detect.image import detect_sphere_in_image  # noqa: E402
-from calib_core.detect.image_fit import CLEAN_RMS_FRAC, CLEAN_RMS_PX  # noqa: E402
+from calib_core.detect.image_fit import clean_rms_px  # noqa: E402
 from calib_core.detect.image_score import FEATURES, features, fit_logistic  # noqa: E402
 from calib_core.synth.image_cases import KINDS, render_case  # noqa: E402
 
@@ -40,7 +40,7 @@ def samples(seeds, scale):
                         continue
                     ok = with_ball and float(np.hypot(*(det.center_uv_px - case.true_uv_px))) <= TOL_PX
                     r = det.radius_px
-                    X.append(features(det.extras, r, max(CLEAN_RMS_PX, CLEAN_RMS_FRAC * r)))
+                    X.append(features(det.extras, r, clean_rms_px(r)))
                     y.append(float(ok))
     return np.array(X), np.array(y)
 

@@ -23,6 +23,13 @@ class SessionError(Exception):
         super().__init__(f"{self.path}: {problem}" if self.path is not None else problem)
 
 
+class Cancelled(Exception):
+    """Raised by a progress callback to stop long work (the workbench shutting down).
+
+    Long loops call their progress callback between steps; a shell that wants the work to stop
+    raises this from the callback, and the work ends at the next step, leaving nothing written."""
+
+
 def short_repr(value, n: int = 60) -> str:
     """repr of a value read from a user's file, cut to ``n`` characters for messages."""
     r = repr(value)

@@ -32,7 +32,6 @@ from dataclasses import dataclass
 
 import numpy as np
 import yaml
-from scipy.spatial.transform import Rotation
 
 from calib_core.camera import CameraModel
 from calib_core.geometry import invert_T
@@ -79,12 +78,16 @@ def _f(x: float) -> str:
 
 def quaternion_xyzw(R: np.ndarray) -> np.ndarray:
     """Unit quaternion (x, y, z, w) of a rotation matrix, with w >= 0."""
+    from scipy.spatial.transform import Rotation  # lazy: scipy costs ~0.3 s at every CLI start
+
     q = Rotation.from_matrix(np.asarray(R, float)[:3, :3]).as_quat()
     return -q if q[3] < 0 else q
 
 
 def rpy_rad(R: np.ndarray) -> np.ndarray:
     """URDF roll, pitch, yaw (rad): R = Rz(yaw) Ry(pitch) Rx(roll) (fixed axes x, y, z)."""
+    from scipy.spatial.transform import Rotation
+
     return Rotation.from_matrix(np.asarray(R, float)[:3, :3]).as_euler("xyz")
 
 

@@ -6,7 +6,6 @@ Rotation vectors are axis * angle in radians (OpenCV / scipy convention).
 from __future__ import annotations
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 
 def make_T(R: np.ndarray, t_m: np.ndarray) -> np.ndarray:
@@ -19,11 +18,15 @@ def make_T(R: np.ndarray, t_m: np.ndarray) -> np.ndarray:
 
 def T_from_rotvec(rotvec_rad: np.ndarray, t_m: np.ndarray) -> np.ndarray:
     """4x4 transform from a rotation vector (rad) and a translation (m)."""
+    from scipy.spatial.transform import Rotation  # lazy: scipy costs ~0.3 s at every CLI start
+
     return make_T(Rotation.from_rotvec(np.asarray(rotvec_rad, float).reshape(3)).as_matrix(), t_m)
 
 
 def rotvec_from_T(T: np.ndarray) -> np.ndarray:
     """Rotation vector (rad) of the rotation part of T."""
+    from scipy.spatial.transform import Rotation
+
     return Rotation.from_matrix(np.asarray(T, float)[:3, :3]).as_rotvec()
 
 

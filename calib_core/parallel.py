@@ -124,7 +124,7 @@ def run_detections(data, todo: list[tuple[str, str]], progress=None, workers: in
 
 def _run_pool(data, todo, progress, n: int, beam_ids: list, beam_detections: dict) -> list:
     import multiprocessing as mp
-    from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+    from concurrent.futures import ProcessPoolExecutor
 
     from calib_core.detect.entries import beam_capture_ids
 
@@ -140,28 +140,41 @@ def _run_pool(data, todo, progress, n: int, beam_ids: list, beam_detections: dic
         progress(0, len(todo), f"detecting in {n} processes")
     later = [k for k, t in enumerate(todo) if beam_ids and t[1] == "sonar"]
     crop_ids = beam_capture_ids(beam_ids) if beam_ids else []
-    crops: dict = {}
     with ProcessPoolExecutor(n, mp_context=ctx, initializer=_init, initargs=(data,)) as ex:
-        # first the beam width's crops (its scan and then every sonar task wait for them)
-        futures = {ex.submit(_crop_task, cid, beam_detections): ("crop", cid) for cid in crop_ids}
-        futures.update({ex.submit(_task, (*t, None)): k for k, t in enumerate(todo) if k not in later})
-        done = 0
-        while futures:
-            finished, _ = wait(futures, return_when=FIRST_COMPLETED)
-            for f in finished:
-                k = futures.pop(f)
-                if isinstance(k, tuple):
-                    crops[k[1]] = f.result()
-                    if len(crops) == len(crop_ids):
-                        futures[ex.submit(_scan_task, [crops[c] for c in crop_ids])] = -1
-                    continue
-                if k == -1:
-                    data.beam_width_deg = f.result()
-                    beam = data.effective_beam_width_deg
-                    futures.update({ex.submit(_task, (*todo[j], beam)): j for j in later})
-                    continue
-                results[k] = f.result()
-                done += 1
-                if progress:
-                    progress(done, len(todo), f"{results[k][0]} {results[k][1]}")
+        try:
+            _drain(ex, data, todo, progress, results, later, crop_ids, beam_detections, n)
+        except BaseException:  # e.g. Cancelled from the progress callback: queued tasks are dropped
+            ex.shutdown(wait=True, cancel_futures=True)
+            raise
     return [_unwrap(*r) for r in results]
+
+
+def _drain(ex, data, todo, progress, results: list, later: list, crop_ids: list, beam_detections, n: int) -> None:
+    """Submit the tasks and collect their results as they finish (the beam width first)."""
+    from concurrent.futures import FIRST_COMPLETED, wait
+
+    crops: dict = {}
+    # first the beam width's crops (its scan and then every sonar task wait for them)
+    futures = {ex.submit(_crop_task, cid, beam_detections): ("crop", cid) for cid in crop_ids}
+    futures.update({ex.submit(_task, (*t, None)): k for k, t in enumerate(todo) if k not in later})
+    done, label = 0, f"detecting in {n} processes"
+    while futures:
+        finished, _ = wait(futures, timeout=0.5, return_when=FIRST_COMPLETED)
+        if not finished and progress:
+            progress(done, len(todo), label)  # also lets the caller cancel between results
+        for f in finished:
+            k = futures.pop(f)
+            if isinstance(k, tuple):
+                crops[k[1]] = f.result()
+                if len(crops) == len(crop_ids):
+                    futures[ex.submit(_scan_task, [crops[c] for c in crop_ids])] = -1
+                continue
+            if k == -1:
+                data.beam_width_deg = f.result()
+                beam = data.effective_beam_width_deg
+                futures.update({ex.submit(_task, (*todo[j], beam)): j for j in later})
+                continue
+            results[k] = f.result()
+            done, label = done + 1, f"{results[k][0]} {results[k][1]}"
+            if progress:
+                progress(done, len(todo), label)

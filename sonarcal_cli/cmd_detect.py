@@ -67,6 +67,9 @@ def run(args) -> int:
     console.print(f"wrote {session.root / 'detections.yaml'}; {missing} detection(s) not found")
     from calib_core.diagnose import diagnose_session
 
-    for f in diagnose_session(data, dets):  # the workbench's flags, in the same words
+    notes: list[str] = []
+    for f in diagnose_session(data, dets, notes):  # the workbench's flags, in the same words
         err_console.print(f"flag: {f.text}", markup=False)
+    for note in notes:
+        err_console.print(f"warning: {note}", markup=False)
     return 0

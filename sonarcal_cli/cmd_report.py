@@ -5,7 +5,6 @@ from __future__ import annotations
 from pathlib import Path
 
 from calib_core.detections import load_detections
-from calib_core.report import ReportOptions, write_report
 from calib_core.results import calibration_path, load_calibration
 from calib_core.session import load_session
 from sonarcal_cli.ui import console, progress_bar
@@ -21,6 +20,8 @@ def add_parser(sub) -> None:
 
 
 def run(args) -> int:
+    from calib_core.report import ReportOptions, write_report  # lazy: scipy and cv2 slow every CLI start
+
     session = load_session(args.session)
     detections = load_detections(session)
     cal_path = Path(args.calibration) if args.calibration else calibration_path(session)

@@ -13,6 +13,7 @@ from __future__ import annotations
 import hashlib
 import importlib
 import os
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -24,6 +25,9 @@ from calib_core.geometry import transform_points
 from calib_core.io.clouds import Cloud, save_cloud
 from calib_core.io.images import save_image
 from calib_core.io.intrinsics import save_intrinsics_ros
+
+sys.path.insert(0, str(Path(__file__).resolve().parent / "browser"))  # the browser tests' helpers
+pytest_plugins = ["chromium_fixtures"]  # one Chromium per run, a context per module (``browser``)
 
 SPHERE_DIAMETER_M = 0.22
 

@@ -122,3 +122,45 @@ def test_stated_sonar_covariance_matches_the_true_errors(quick):
         m2.append(err @ np.linalg.solve(np.asarray(e["cov_m2"]).reshape(3, 3), err) / 3)
     # ~1 when honest; the fit's range-noise covariance alone gave ~7 (errors ~2.7x the stated sigma)
     assert 0.15 < np.mean(m2) < 2.5, np.mean(m2)
+
+
+def test_detection_stops_when_its_progress_callback_cancels(quick):
+    """The workbench stops a running detection (Ctrl+C on `serve`) by raising Cancelled from the
+    progress callback: it reaches the caller through the process pool (whose queued captures are dropped)."""
+    from calib_core.errors import Cancelled
+    from calib_core.parallel import run_detections
+
+    session, _truth, _dets = quick
+    todo = [(c.id, s) for c in session.captures for s in ("sonar", *c.image_paths)]
+    calls = []
+
+    def progress(done, total, label):
+        calls.append(done)
+        if done >= 1:
+            raise Cancelled("stop")
+
+    with pytest.raises(Cancelled):
+        run_detections(SessionData(session), todo, progress, workers=2)
+    assert max(calls) < len(todo)
+
+
+def test_a_cancelled_job_ends_quietly_and_no_new_job_starts():
+    import threading
+
+    from app.common import JobRunner
+
+    errors, started = [], threading.Event()
+
+    def job(progress):
+        started.set()
+        for i in range(10_000):
+            progress(i, 10_000, "step")
+            threading.Event().wait(0.01)
+
+    runner = JobRunner(on_progress=lambda *a: None, on_error=lambda name, e: errors.append(e))
+    runner.start("detection", job)
+    assert started.wait(10)
+    runner.cancel(30)
+    assert runner.running is None and errors == []
+    runner.start("detection", job)  # refused once shutting down
+    assert runner.running is None

@@ -28,7 +28,7 @@ import numpy as np
 
 from calib_core.camera import CameraModel
 from calib_core.detect.image_fit import CandidateFit, refine_candidate
-from calib_core.detect.image_fit import CLEAN_RMS_FRAC, CLEAN_RMS_PX
+from calib_core.detect.image_fit import clean_rms_px
 from calib_core.detect.image_hough import hough_circle
 from calib_core.detect.image_score import features, probability
 from calib_core.detect.image_votes import candidates_by_votes
@@ -102,6 +102,9 @@ def _not_found(reason: str, method: str, **extras) -> ImageDetection:
 
 
 NO_OUTLINE = "no round outline"
+# a round outline this much visible (or more) but refused as hidden is named in the reason;
+# a few per cent of a circle is no outline at all
+HIDDEN_NAMED_SUPPORT = 0.3
 CUT = "sphere cut by the image border"
 
 
@@ -124,7 +127,8 @@ def _refusal(fits, cands, method) -> ImageDetection:
         return _not_found(CUT, method, candidates=len(cands))
     # a clean round outline, only partly visible, is worth naming; outlines that are not round
     # or sit inside something larger are clutter (listed in the extras, not in the reason)
-    near = [f for _, f in fits if f.fit is not None and f.reason.startswith("outline ") and "hidden" in f.reason]
+    near = [f for _, f in fits if f.fit is not None and f.reason.startswith("outline ") and "hidden" in f.reason
+            and f.support >= HIDDEN_NAMED_SUPPORT]
     if near:
         best = max(near, key=lambda f: f.support)
         u, v = best.centre_uv_px
@@ -182,7 +186,7 @@ def _inside(uv: np.ndarray, outline: np.ndarray) -> bool:
     return cv2.pointPolygonTest(outline.astype(np.float32), (float(uv[0]), float(uv[1])), False) > 0
 
 
-def _refine_all(img, cam, todo, sphere_radius_m, a_range, bg, rng, hinted: bool):
+def _refine_all(look, todo, hinted: bool):
     """Refine candidates in order; stop early when what is left cannot matter."""
     fits: list[tuple[Candidate, CandidateFit]] = []
     for c in todo:
@@ -193,7 +197,7 @@ def _refine_all(img, cam, todo, sphere_radius_m, a_range, bg, rng, hinted: bool)
             # target has much less contrast than a solid decoy: keep checking those)
         if ok and _evidence_bound(c) < 0.5 * max(_evidence(f) for _, f in ok):
             continue  # even at its best this one could not make the found one ambiguous
-        fits.append((c, refine_candidate(img, cam, c, sphere_radius_m, a_range, bg, rng)))
+        fits.append((c, look.refine(c)))
     return fits
 
 
@@ -223,6 +227,10 @@ def _hint_candidates(cands, hint_uv, hint_r, r_bounds):
     return near + [Candidate(hint, float(r), (float(r), float(r)), 0.0, False, 0.0, "hint")]
 
 
+# a fit score (outline share x roundness) below which an accepted outline is ragged or mostly
+# hidden: clutter makes those (chair legs, tiles); the second cue then looks as well
+WEAK_FIT = 0.5
+VOTE_CANDIDATES = 8  # round-outline vote peaks refined (clutter outranks a faint large outline often)
 FAINT_CONTRAST = 10.0  # grey levels: a background-difference outline this faint gets a second look
 
 
@@ -289,45 +297,88 @@ def _detect_once(image_rgb: np.ndarray, cam: CameraModel, sphere_radius_m: float
         background = prepare_background(background)
         if background.image.shape[:2] != (H, W):
             return _not_found("background differs in size from the image", method)
-    d_min, d_max = range_limits_m
-    r_bounds = radius_bounds_px(cam, sphere_radius_m, range_limits_m)
-    if hint_radius_px is not None:
-        r_bounds = (0.6 * hint_radius_px, 1.6 * hint_radius_px)
-    a_range = (np.arcsin(min(sphere_radius_m / (1.25 * d_max), 0.999)),
-               np.arcsin(min(sphere_radius_m / max(0.8 * d_min, sphere_radius_m * 1.001), 0.999)))
-
-    s = choose_scale(r_bounds[0], W)
-    small = downscale(img, s)
-    if background is not None:
-        bg = background.image
-        cands, _ = candidates_from_background(small, background.small(s), s, r_bounds)
-    else:
-        bg = None
-        cands = candidates_by_votes(small, s, r_bounds, max_candidates=5)
-        if not cands:
-            cands = candidates_single_frame(small, s, r_bounds, max_candidates=12)
-    if hint_uv_px is not None:
-        cands = _hint_candidates(cands, hint_uv_px, hint_radius_px, r_bounds)
+    look = _Look(img, cam, sphere_radius_m, background, range_limits_m, hint_radius_px,
+                 max_candidates, np.random.default_rng(seed))
+    cands = look.first_candidates(hint_uv_px)
     t_region = time.perf_counter()
     if not cands:
         return _not_found(NO_OUTLINE, method, candidates=0)
+    fits = _refine_all(look, _in_order(cands, look.max_candidates), hint_uv_px is not None)
+    if hint_uv_px is None and background is None and not any(f.ok and f.score >= WEAK_FIT for _, f in fits):
+        # no clear round outline among the votes (none, or only ragged ones: clutter): region
+        # contrast (an open mesh, a low-contrast outline) as the second cue
+        more = _new_candidates(fits, look.contrast_candidates())
+        cands = cands + more
+        fits += _refine_all(look, _in_order(more, look.max_candidates), False)
+    det = _verdict(look, fits, cands, method, hint_uv_px is not None)
+    if det.found:
+        det.extras["time_ms"] = round(1e3 * (time.perf_counter() - t0), 2)
+        det.extras["region_ms"] = round(1e3 * (t_region - t0), 2)
+    return det
 
-    rng = np.random.default_rng(seed)
-    # candidates touching the border are tried last (a sphere there is cut anyway), at most 2
-    if max_candidates is None:
-        max_candidates = 6 if background is not None else 10
-    todo = ([c for c in cands if not c.touches_border][:max_candidates]
+
+class _Look:
+    """What one detection pass knows: the image, its downscaled copy, the size bounds."""
+
+    def __init__(self, img, cam, sphere_radius_m, background, range_limits_m, hint_radius_px,
+                 max_candidates, rng):
+        self.img, self.cam, self.radius_m, self.rng = img, cam, sphere_radius_m, rng
+        self.d_min, self.d_max = range_limits_m
+        r_bounds = radius_bounds_px(cam, sphere_radius_m, range_limits_m)
+        if hint_radius_px is not None:
+            r_bounds = (0.6 * hint_radius_px, 1.6 * hint_radius_px)
+        self.r_bounds, self.hint_radius_px = r_bounds, hint_radius_px
+        self.a_range = (np.arcsin(min(sphere_radius_m / (1.25 * self.d_max), 0.999)),
+                        np.arcsin(min(sphere_radius_m / max(0.8 * self.d_min, sphere_radius_m * 1.001), 0.999)))
+        self.s = choose_scale(r_bounds[0], img.shape[1])
+        self.small = downscale(img, self.s)
+        self.background = background
+        self.bg = background.image if background is not None else None
+        self.max_candidates = max_candidates or (6 if background is not None else 10)
+
+    def first_candidates(self, hint_uv_px) -> list[Candidate]:
+        """Background-difference blobs, else round-outline votes, else region contrast."""
+        if self.background is not None:
+            cands, _ = candidates_from_background(self.small, self.background.small(self.s), self.s, self.r_bounds)
+        else:
+            cands = candidates_by_votes(self.small, self.s, self.r_bounds, max_candidates=VOTE_CANDIDATES)
+            if not cands:
+                cands = self.contrast_candidates()
+        if hint_uv_px is not None:
+            cands = _hint_candidates(cands, hint_uv_px, self.hint_radius_px, self.r_bounds)
+        return cands
+
+    def contrast_candidates(self) -> list[Candidate]:
+        return candidates_single_frame(self.small, self.s, self.r_bounds, max_candidates=12)
+
+    def refine(self, c: Candidate) -> CandidateFit:
+        return refine_candidate(self.img, self.cam, c, self.radius_m, self.a_range, self.bg, self.rng)
+
+
+def _in_order(cands, max_candidates):
+    """Candidates touching the border last (a sphere there is cut anyway), at most 2 of them."""
+    return ([c for c in cands if not c.touches_border][:max_candidates]
             + [c for c in cands if c.touches_border][:2])
-    fits = _refine_all(img, cam, todo, sphere_radius_m, a_range, bg, rng, hint_uv_px is not None)
-    if hint_uv_px is None and not any(f.ok for _, f in fits):
-        # no round outline among the votes: region contrast (an open mesh, a low-contrast
-        # outline) as the second cue
-        if bg is None:
-            more = _merge_candidates(cands, candidates_single_frame(small, s, r_bounds, max_candidates=12))[len(cands):]
-            cands = cands + more
-            fits += _refine_all(img, cam, ([c for c in more if not c.touches_border][:max_candidates]
-                                           + [c for c in more if c.touches_border][:2]),
-                                sphere_radius_m, a_range, None, rng, False)
+
+
+def _new_candidates(fits, more: list[Candidate]) -> list[Candidate]:
+    """Second-cue candidates that are not what was looked at already: not at a credible outline
+    fitted, nor where a candidate tried found no edges at all (a vote candidate a little off
+    can miss an outline that a region candidate a few px away finds)."""
+    out = []
+    for c in more:
+        if any(f.fit is None and np.hypot(*(c.centre_px - o.centre_px)) < 0.1 * max(c.radius_px, o.radius_px)
+               and 0.8 < c.radius_px / o.radius_px < 1.25 for o, f in fits):
+            continue
+        if any(f.credible and np.hypot(*(c.centre_px - f.centre_uv_px)) < 0.5 * _mean_radius(f.silhouette_px)
+               for _, f in fits):
+            continue
+        out.append(c)
+    return out
+
+
+def _good_fits(fits):
+    """Accepted outlines, each object once (its best fit), none inside a larger fitted one."""
     fitted = [(c, f) for c, f in fits if f.credible]
     good: list[tuple[Candidate, CandidateFit]] = []
     for c, f in sorted(fits, key=lambda cf: -cf[1].score):
@@ -342,29 +393,50 @@ def _detect_once(image_rgb: np.ndarray, cam: CameraModel, sphere_radius_m: float
         if not any(np.hypot(*(f.centre_uv_px - g.centre_uv_px)) < 0.8 * max(r_f, _mean_radius(g.silhouette_px))
                    for _, g in good):
             good.append((c, f))
-    timing = {"region_ms": round(1e3 * (t_region - t0), 2)}
+    good.sort(key=lambda cf: -_evidence(cf[1]))
+    return good
+
+
+def _verdict(look, fits, cands, method, hinted: bool) -> ImageDetection:
+    """Found (one clear outline), or why not (none, cut, hidden, two round objects)."""
+    good = _good_fits(fits)
     if not good:
         return _refusal(fits, cands, method)
-    good.sort(key=lambda cf: -_evidence(cf[1]))
     # a clean round outline refused only for being cut by the border (or partly hidden) that
     # outweighs the best accepted one: the accepted one is likely clutter, the sphere is there
     blocker = _stronger_refused(fits, good[0][1])
-    if blocker is not None and hint_uv_px is None:
+    if blocker is not None and not hinted:
         u, v = blocker.centre_uv_px
         return _not_found(blocker.reason, method, candidates=len(cands),
                           partial_center_uv_px=[round(float(u), 2), round(float(v), 2)],
                           rejected=_rejected(fits))
-    if len(good) > 1 and hint_uv_px is None and _evidence(good[1][1]) >= 0.5 * _evidence(good[0][1]):
+    if len(good) > 1 and not hinted and _evidence(good[1][1]) >= 0.5 * _evidence(good[0][1]):
         # both kept (u, v, range_m): a caller with another clue (the sonar's range, a click)
         # can choose; the detector does not guess
         return _not_found(two_objects_reason([f.centre_uv_px for _, f in good[:3]]), method,
                           candidates=len(cands), two_candidates=[
             [round(float(f.centre_uv_px[0]), 2), round(float(f.centre_uv_px[1]), 2), round(f.range_m, 4)]
             for _, f in good[:3]])
-    cand, f = good[0]
+    f = good[0][1]
+    if not (0.8 * look.d_min <= f.range_m <= 1.25 * look.d_max):
+        return _not_found("apparent size outside the plausible range", method)
+    runner_up = _evidence(good[1][1]) / max(_evidence(f), 1e-9) if len(good) > 1 else 0.0
+    det = _detection(f, look.radius_m, method, len(cands), runner_up)
+    if method == "hough-circle":
+        h = hough_circle(look.img, f.centre_uv_px, det.radius_px)
+        if h is None:
+            return _not_found("no Hough circle", method)
+        det.center_uv_px, det.radius_px, det.cov_uv_px2 = h[0], h[1], h[2]
+        det.ellipse_px = ((float(h[0][0]), float(h[0][1])), (2 * h[1], 2 * h[1]), 0.0)
+    return det
+
+
+def _detection(f: CandidateFit, sphere_radius_m: float, method: str, n_cands: int,
+               runner_up: float) -> ImageDetection:
+    """The found detection of an accepted outline, with its score and extras."""
     extras = dict(f.extras)
-    extras["candidates"] = len(cands)
-    extras["runner_up_ratio"] = round(_evidence(good[1][1]) / max(_evidence(f), 1e-9), 4) if len(good) > 1 else 0.0
+    extras["candidates"] = n_cands
+    extras["runner_up_ratio"] = round(runner_up, 4)
     apparent_r = _mean_radius(f.silhouette_px)
     rng_sigma = float(sphere_radius_m * np.cos(f.fit.a_rad) / np.sin(f.fit.a_rad) ** 2
                       * np.sqrt(f.fit.cov_params[2, 2]))
@@ -373,18 +445,7 @@ def _detect_once(image_rgb: np.ndarray, cam: CameraModel, sphere_radius_m: float
     # wrong diameter in session.yaml shows up as a range that disagrees with the sonar's
     extras["angular_radius_deg"] = round(float(np.degrees(f.fit.a_rad)), 5)
     extras["fit_quality"] = round(f.score, 4)
-    score = probability(features(extras, apparent_r, max(CLEAN_RMS_PX, CLEAN_RMS_FRAC * apparent_r)), f.score)
-    det = ImageDetection(found=True, center_uv_px=f.centre_uv_px, cov_uv_px2=f.cov_uv_px2,
-                         score=score, ellipse_px=_ellipse_px(f.silhouette_px),
-                         radius_px=apparent_r, range_m=f.range_m, method=method, extras=extras)
-    if not (0.8 * d_min <= f.range_m <= 1.25 * d_max):
-        return _not_found("apparent size outside the plausible range", method)
-    if method == "hough-circle":
-        h = hough_circle(img, f.centre_uv_px, apparent_r)
-        if h is None:
-            return _not_found("no Hough circle", method)
-        det.center_uv_px, det.radius_px, det.cov_uv_px2 = h[0], h[1], h[2]
-        det.ellipse_px = ((float(h[0][0]), float(h[0][1])), (2 * h[1], 2 * h[1]), 0.0)
-    det.extras["time_ms"] = round(1e3 * (time.perf_counter() - t0), 2)
-    det.extras.update(timing)
-    return det
+    score = probability(features(extras, apparent_r, clean_rms_px(apparent_r)), f.score)
+    return ImageDetection(found=True, center_uv_px=f.centre_uv_px, cov_uv_px2=f.cov_uv_px2,
+                          score=score, ellipse_px=_ellipse_px(f.silhouette_px),
+                          radius_px=apparent_r, range_m=f.range_m, method=method, extras=extras)

@@ -128,6 +128,9 @@ def _residuals(v, w, a, scale):
 
 
 def _ransac(v, scale, a_range, thr_px, rng, n_hyp=64, extra=()):
+    """Best (w, a) among 3-point hypotheses and ``extra`` ones: the most points within
+    ``thr_px``, ties broken by the truncated squared residual (MSAC), so that of two cones
+    explaining as many points the tighter one wins."""
     n = len(v)
     idx = rng.integers(0, n, (n_hyp, 3))
     idx = idx[(idx[:, 0] != idx[:, 1]) & (idx[:, 0] != idx[:, 2]) & (idx[:, 1] != idx[:, 2])]
@@ -148,55 +151,34 @@ def _ransac(v, scale, a_range, thr_px, rng, n_hyp=64, extra=()):
         return None
     W, A = W[keep], A[keep]
     ang = np.arccos(np.clip(v @ W.T, -1, 1))  # (N,H)
-    count = (np.abs(scale[:, None] * (ang - A[None, :])) < thr_px).sum(axis=0)
-    b = int(np.argmax(count))
+    r2 = np.minimum((scale[:, None] * (ang - A[None, :])) ** 2, thr_px ** 2)
+    b = int(np.argmin(r2.sum(axis=0)))
     return W[b], float(A[b])
 
 
-def fit_cone(cam: CameraModel, xy: np.ndarray, a_range_rad=(1e-3, 1.4), inlier_px: float = 1.5,
-             rng: np.random.Generator | None = None, corr_points: float = 1.0,
-             start: tuple[np.ndarray, float] | None = None, max_iter: int = 12) -> ConeFit | None:
-    """Robust fit of a sphere's silhouette cone to edge points.
+def _start(cam, xy, v, a_range_rad, inlier_px, rng):
+    """RANSAC start, with the algebraic conic fit and the mean ray as extra hypotheses."""
+    extra = []
+    Q = fit_conic_normalised(xy)
+    if Q is not None:
+        c = cone_from_conic(Q)
+        if c is not None:
+            extra.append(c)
+    m = v.mean(axis=0)  # for evenly spread points, mean ray = cos(a) w
+    if np.linalg.norm(m) > 0:
+        w0 = m / np.linalg.norm(m)
+        extra.append((w0, float(np.median(np.arccos(np.clip(v @ w0, -1, 1))))))
+    scale0 = px_per_rad(cam, v, extra[-1][0]) if extra else np.full(len(v), cam.fx)
+    return _ransac(v, scale0, a_range_rad, max(inlier_px, 2.0), rng, extra=extra)
 
-    Args:
-        cam: camera model (for the px-per-radian scale of each residual).
-        xy: (N,2) edge points in normalised undistorted coordinates (``cam.normalize(uv_px)``).
-        a_range_rad: plausible half-angles (from the known radius and the range limits).
-        inlier_px: residual (raw px) beyond which a point is an outlier (chain, texture, clutter).
-        rng: random generator for the 3-point RANSAC start.
-        corr_points: how many neighbouring edge points share one independent error (the
-            edge samples are closer than the smoothing length); inflates the covariance.
-        start: (w, a_rad) of a previous fit; skips the RANSAC start.
-        max_iter: most reweighted Gauss-Newton steps.
 
-    Returns:
-        :class:`ConeFit`, or None when no plausible cone explains the points.
-    """
-    rng = rng or np.random.default_rng(0)
-    xy = np.asarray(xy, float).reshape(-1, 2)
-    if not np.isfinite(xy).all():
-        return None
-    v = rays_from_xy(xy)
-    if len(v) < 8:
-        return None
-    if start is None:
-        extra = []
-        Q = fit_conic_normalised(xy)
-        if Q is not None:
-            c = cone_from_conic(Q)
-            if c is not None:
-                extra.append(c)
-        m = v.mean(axis=0)  # for evenly spread points, mean ray = cos(a) w
-        if np.linalg.norm(m) > 0:
-            w0 = m / np.linalg.norm(m)
-            extra.append((w0, float(np.median(np.arccos(np.clip(v @ w0, -1, 1))))))
-        scale0 = px_per_rad(cam, v, extra[-1][0]) if extra else np.full(len(v), cam.fx)
-        start = _ransac(v, scale0, a_range_rad, max(inlier_px, 2.0), rng, extra=extra)
-        if start is None:
-            return None
-    w, a = np.asarray(start[0], float), float(start[1])
+def _irls(cam, v, w, a, inlier_px, max_iter, tight: bool):
+    """Reweighted Gauss-Newton from (w, a); returns (w, a, inlier band px) or None.
+
+    The band starts at ``max(inlier_px, 2)`` px and then follows 3.5 x the inliers' spread;
+    with ``tight`` it never widens again (a start pulled off the outline by edges of things
+    touching the sphere must not let those edges in)."""
     thr = max(inlier_px, 2.0)
-    sig = 0.0
     for it in range(max_iter):
         if it in (0, 3):  # the px-per-radian scale barely moves once w is close
             scale = px_per_rad(cam, v, w)
@@ -224,11 +206,14 @@ def fit_cone(cam: CameraModel, xy: np.ndarray, a_range_rad=(1e-3, 1.4), inlier_p
         w /= np.linalg.norm(w)
         a = a + step[2]
         if it >= 2:
-            thr = max(inlier_px, 3.5 * sig)
+            thr = min(thr, max(inlier_px, 3.5 * sig)) if tight else max(inlier_px, 3.5 * sig)
         if np.abs(step).max() < 1e-8 and it >= 4:
             break
-    if not (a_range_rad[0] <= a <= a_range_rad[1]) or w[2] <= 0:
-        return None
+    return w, a, thr
+
+
+def _finish(cam, v, w, a, thr, corr_points) -> ConeFit | None:
+    """Inliers, robust spread and parameter covariance at the solution."""
     scale = px_per_rad(cam, v, w)
     r, ang = _residuals(v, w, a, scale)
     inl = np.abs(r) < thr
@@ -247,6 +232,47 @@ def fit_cone(cam: CameraModel, xy: np.ndarray, a_range_rad=(1e-3, 1.4), inlier_p
     sig_rob = 1.4826 * float(np.median(np.abs(r[inl] - np.median(r[inl]))))
     return ConeFit(w=w, a_rad=float(a), inliers=inl, residuals_px=r, sigma_px=sig_rob,
                    cov_params=cov, basis=np.vstack([w, e1, e2]))
+
+
+def fit_cone(cam: CameraModel, xy: np.ndarray, a_range_rad=(1e-3, 1.4), inlier_px: float = 1.5,
+             rng: np.random.Generator | None = None, corr_points: float = 1.0,
+             start: tuple[np.ndarray, float] | None = None, max_iter: int = 12,
+             tight: bool = False) -> ConeFit | None:
+    """Robust fit of a sphere's silhouette cone to edge points.
+
+    Args:
+        cam: camera model (for the px-per-radian scale of each residual).
+        xy: (N,2) edge points in normalised undistorted coordinates (``cam.normalize(uv_px)``).
+        a_range_rad: plausible half-angles (from the known radius and the range limits).
+        inlier_px: residual (raw px) beyond which a point is an outlier (chain, texture, clutter).
+        rng: random generator for the 3-point RANSAC start.
+        corr_points: how many neighbouring edge points share one independent error (the
+            edge samples are closer than the smoothing length); inflates the covariance.
+        start: (w, a_rad) of a previous fit; skips the RANSAC start.
+        max_iter: most reweighted Gauss-Newton steps.
+        tight: the inlier band only narrows during the iterations (see :func:`_irls`).
+
+    Returns:
+        :class:`ConeFit`, or None when no plausible cone explains the points.
+    """
+    rng = rng or np.random.default_rng(0)
+    xy = np.asarray(xy, float).reshape(-1, 2)
+    if not np.isfinite(xy).all():
+        return None
+    v = rays_from_xy(xy)
+    if len(v) < 8:
+        return None
+    if start is None:
+        start = _start(cam, xy, v, a_range_rad, inlier_px, rng)
+        if start is None:
+            return None
+    out = _irls(cam, v, np.asarray(start[0], float), float(start[1]), inlier_px, max_iter, tight)
+    if out is None:
+        return None
+    w, a, thr = out
+    if not (a_range_rad[0] <= a <= a_range_rad[1]) or w[2] <= 0:
+        return None
+    return _finish(cam, v, w, a, thr, corr_points)
 
 
 def centre_uv_and_cov(cam: CameraModel, fit: ConeFit) -> tuple[np.ndarray, np.ndarray]:

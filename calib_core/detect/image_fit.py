@@ -37,10 +37,28 @@ SYS_FRACTION = 0.2
 MIN_SUPPORT = 0.5
 CLEAN_RMS_PX = 0.9
 CLEAN_RMS_FRAC = 0.012
+# Below SMALL_RADIUS_PX (the smallest sphere the detector is meant for) the floor shrinks with
+# the radius: 0.9 px on an 8 px circle is a tenth of it (a rounded icon, a screw head).
+SMALL_RADIUS_PX = 15.0
+
+
+def clean_rms_px(radius_px: float) -> float:
+    """Largest edge RMS (px) of a round outline of this apparent radius."""
+    return max(CLEAN_RMS_FRAC * radius_px, CLEAN_RMS_PX * min(1.0, radius_px / SMALL_RADIUS_PX))
+
+
 # Without a background image the "looks like the surroundings just outside" test compares the
 # band outside the outline with the colour a little farther out, which clutter varies by
 # itself: a looser limit there.
 OUTSIDE_MISMATCH_CLUTTER = 0.35
+# a fit that had to leave out the edges of things touching the sphere must be this much rounder
+# than the clean limit on the edges it keeps
+TIGHT_RMS_FRACTION = 0.5
+# ... and still lie on most of the outline (a half circle in clutter is too easily had)
+TIGHT_MIN_SUPPORT = 0.6
+# an edge point's gradient must exceed this many times the region's median gradient (noise,
+# texture); a median of a noise-only gradient magnitude is ~1.5 sigma, so this is ~4 sigma
+EDGE_NOISE_FACTOR = 2.5
 PASS1_MAX_RMS_PX = 2.5
 PASS1_MAX_RMS_FRAC = 0.04
 
@@ -87,6 +105,14 @@ class _Signal:
                                    SMOOTH_SIGMA_PX)
         else:
             self.img = smooth_roi(image, x0, y0, x1, y1, SMOOTH_SIGMA_PX)
+        self._noise = None
+
+    @property
+    def noise(self) -> float:
+        """Median gradient magnitude of the region (computed once, when pass 2 needs it)."""
+        if self._noise is None:
+            self._noise = _typical_gradient(self.diff if self.diff is not None else self.img)
+        return self._noise
 
     def profiles(self, pts, nrm, t, far_t_frac=0.15):
         """(K,M,c) signal: |image - background| with a background, else |image - local
@@ -102,6 +128,16 @@ class _Signal:
         if self.diff is not None:
             return sample_profiles(self.diff, self.origin, pts, nrm, t)
         return sample_profiles(self.img, self.origin, pts, nrm, t)
+
+
+def _typical_gradient(roi: np.ndarray) -> float:
+    """Median gradient magnitude (per px) of a smoothed region, on every third row: the level
+    of noise and texture an outline's edge has to stand out from."""
+    r = roi[::3] if roi.ndim == 3 else roi[::3, :, None]
+    if r.shape[1] < 3:
+        return 0.0
+    d = 0.5 * (r[:, 2:] - r[:, :-2])
+    return float(np.median(np.sqrt((d * d).sum(axis=2))))
 
 
 def refine_candidate(image: np.ndarray, cam: CameraModel, cand: Candidate, sphere_radius_m: float,
@@ -164,7 +200,7 @@ def refine_candidate(image: np.ndarray, cam: CameraModel, cand: Candidate, spher
     # ---- pass 2: along the normals of the fitted silhouette, narrow band (twice when the
     # first pass-2 fit is still rough: clutter drew pass 1 off the outline)
     p2 = _pass2(cam, sig, fit1, R, a_range_rad, rng)
-    if p2 is not None and p2[0].sigma_px > max(CLEAN_RMS_PX, CLEAN_RMS_FRAC * R):
+    if p2 is not None and p2[0].sigma_px > clean_rms_px(R):
         again = _pass2(cam, sig, p2[0], R, a_range_rad, rng)
         if again is not None and _quality(again[0]) > _quality(p2[0]):
             p2 = again
@@ -192,7 +228,9 @@ def refine_candidate(image: np.ndarray, cam: CameraModel, cand: Candidate, spher
         if visible.sum() >= 8 else 1.0
     res.extras["outside_mismatch"] = round(outside_bad, 4)
     # a clean outline, maybe cut by the border: things inside it are its texture
-    clean = fit.sigma_px <= max(CLEAN_RMS_PX, CLEAN_RMS_FRAC * R)
+    # judged at the fitted size (the candidate's coarse size can be well off)
+    r_fit = float(np.mean(np.linalg.norm(sil_f - sil_f.mean(axis=0), axis=1)))
+    clean = fit.sigma_px <= clean_rms_px(min(R, r_fit))
     res.credible = support >= 0.45 and clean and outside_bad <= 0.2
     res.extras["outline_coverage"] = round(support, 3)
     if not cam.in_image(sil_f, margin_px=1.0).all():
@@ -205,7 +243,7 @@ def refine_candidate(image: np.ndarray, cam: CameraModel, cand: Candidate, spher
         res.ok, res.reason = False, f"outline {100 * (1 - support):.0f} % hidden or too faint"
     elif (outside_bad > (0.2 if sig.diff is not None else OUTSIDE_MISMATCH_CLUTTER)
           and not (support >= 0.7 and outside_bad <= 0.5
-                   and fit.sigma_px <= 0.35 * max(CLEAN_RMS_PX, CLEAN_RMS_FRAC * R))):
+                   and fit.sigma_px <= 0.35 * clean_rms_px(R))):
         # (a mostly visible, very clean round outline is a sphere whatever lies around it: a
         # ball resting on a block, in front of clutter)
         # the object goes on beyond the fitted outline: part of something larger (or cut)
@@ -233,18 +271,31 @@ def _pass2(cam, sig, fit1: ConeFit, R: float, a_range_rad, rng):
     # background, also the strongest edge (clutter just outside the outline makes edges too)
     best = None
     for rule in ("outermost",) if sig.diff is not None else ("outermost", "strongest"):
-        if best is not None and best[0].sigma_px <= 0.5 * max(CLEAN_RMS_PX, CLEAN_RMS_FRAC * R) \
+        if best is not None and best[0].sigma_px <= 0.5 * clean_rms_px(R) \
                 and best[0].inliers.mean() >= 0.9:
             break  # the envelope reading is clean already
-        te, s2 = pick_edges(t2, g2, rule, 0.3 * g2_typ)
+        # an edge must stand out from the region's noise and texture: in noise alone, the
+        # outermost of the small gradient peaks sits at the band's end for every normal and
+        # makes a "round outline" of its own
+        te, s2 = pick_edges(t2, g2, rule, max(0.3 * g2_typ, EDGE_NOISE_FACTOR * sig.noise))
         ok2 = np.isfinite(te) & inside_img
         if ok2.sum() < 12:
             continue
         uv2 = sil[ok2] + te[ok2, None] * nrm[ok2]
         # edge points are within a few px of the model outline: Newton from its normalised points
         xy2 = normalize_near(cam, uv2, sil_xy[ok2], iterations=3)
-        fit = fit_cone(cam, xy2, a_range_rad, inlier_px=max(1.0, 0.01 * R), rng=rng,
-                       corr_points=max(1.0, CORR_LENGTH_PX * k2 / perim), start=(fit1.w, fit1.a_rad))
+        kw = dict(inlier_px=max(1.0, 0.01 * R), rng=rng, corr_points=max(1.0, CORR_LENGTH_PX * k2 / perim))
+        fit = fit_cone(cam, xy2, a_range_rad, start=(fit1.w, fit1.a_rad), **kw)
+        if fit is None or fit.sigma_px > clean_rms_px(R):
+            # edges of things touching the sphere (a seat, a backrest) pulled the fit off:
+            # search again for the cone the tightest majority of the edges lie on
+            # (it must be very round on the edges it keeps: a circle forced onto a box or onto
+            # chair legs keeps a few tangent stretches, each off by up to the band)
+            alt = fit_cone(cam, xy2, a_range_rad, tight=True, **kw)
+            if (alt is not None and alt.sigma_px <= TIGHT_RMS_FRACTION * clean_rms_px(R)
+                    and alt.inliers.sum() >= TIGHT_MIN_SUPPORT * k2
+                    and (fit is None or _quality(alt) > _quality(fit))):
+                fit = alt
         if fit is not None and (best is None or _quality(fit) > _quality(best[0])):
             best = (fit, ok2, s2, k2)
     return best

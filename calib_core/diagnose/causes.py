@@ -22,6 +22,7 @@ from calib_core.diagnose import wording
 from calib_core.diagnose.consistency import check_camera
 from calib_core.diagnose.outline import find_outline
 from calib_core.geometry import invert_T
+from calib_core.solve.consensus import NO_CONSENSUS
 
 
 @dataclass
@@ -122,9 +123,11 @@ def explain_capture(data, detections: dict, cid: str, cam: str, T_cam_sonar: np.
     return Flag(cid, "capture", "moved", cam, miss_px, [float(v) for v in uv])
 
 
-def diagnose_session(session_or_data, detections: dict) -> list[Flag]:
+def diagnose_session(session_or_data, detections: dict, notes: list | None = None) -> list[Flag]:
     """Flags for every capture that does not fit (image and sonar flags per camera; a capture's
-    'moved' or 'sonar' flag once, from the first camera that raised it)."""
+    'moved' or 'sonar' flag once, from the first camera that raised it). ``notes``, when given,
+    receives the solver's plain words when a camera's captures show no clear consensus
+    (:func:`calib_core.solve.consensus.no_consensus_phrase`)."""
     from calib_core.pipeline import _as_data
 
     data = _as_data(session_or_data)
@@ -134,6 +137,8 @@ def diagnose_session(session_or_data, detections: dict) -> list[Flag]:
         cons = check_camera(data.session, detections, cam)
         if cons is None:
             continue
+        if notes is not None and not cons.clear:
+            notes += [w for w in cons.warnings if NO_CONSENSUS in w]
         for cid in cons.outliers:
             if (cid, "capture") in seen or (cid, "sonar") in seen:
                 continue

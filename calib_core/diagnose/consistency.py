@@ -6,7 +6,7 @@ that the workbench and ``calibrate`` agree on who does not fit.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -22,25 +22,35 @@ class Consistency:
 
     T_cam_sonar: the consensus pose; outliers: capture ids outside the consensus;
     residual_px: {capture: |image centre - projected sonar centre|} at that pose.
+    clear: False when another set of captures agrees with another pose about as well;
+    warnings: the solver's words about it (:func:`calib_core.solve.consensus.no_consensus_phrase`).
     """
 
     cam: str
     T_cam_sonar: np.ndarray
     outliers: list[str]
     residual_px: dict[str, float]
+    clear: bool = True
+    warnings: list[str] = field(default_factory=list)
 
 
 def check_camera(session, detections: dict, cam: str) -> Consistency | None:
     """Robust consistency of camera ``cam`` (None with fewer than MIN_CAPTURES pairs)."""
-    from calib_core.solve.pnp import ransac_pose
-
     corr = correspondences(session, detections, cam)
     if len(corr) < MIN_CAPTURES:
         return None
     cd = camera_data(cam, session.camera_model(cam), corr.capture_ids, corr.uv_px, corr.cov_uv_px2,
                      corr.X_sonar_m, corr.cov_X_m2)
+    return consistency_of(cd)
+
+
+def consistency_of(cd) -> Consistency:
+    """Who does not fit, from one camera's correspondences: the solver's own consensus and gate
+    (:func:`calib_core.solve.pnp.ransac_pose`), so a Solve and the flags agree."""
+    from calib_core.solve.pnp import ransac_pose
+
     start = ransac_pose(cd)
     r_px = per_camera_stats(cd, start.T_cam_sonar)[0]
     res = {cid: float(np.linalg.norm(r)) for cid, r in zip(cd.capture_ids, r_px)}
     out = [cid for cid, ok in zip(cd.capture_ids, start.inliers) if not ok]
-    return Consistency(cam, start.T_cam_sonar, out, res)
+    return Consistency(cd.name, start.T_cam_sonar, out, res, start.clear, list(start.warnings))

@@ -84,9 +84,9 @@ def gate_test(cd: CameraData, T_cam_sonar: np.ndarray, cov6: np.ndarray, inl: np
     return GateResult(t, F, f_critical(dof, len(cd), alpha), dof, chi2 / dof_fit if dof_fit > 0 else float("nan"))
 
 
-def next_set(res: GateResult, inl: np.ndarray, min_keep: int) -> np.ndarray | None:
-    """One gate step: drop the worst failing row in the set, else re-admit the best passing row
-    outside it, else None (the set is final)."""
+def next_set(res: GateResult, inl: np.ndarray, min_keep: int, readmit: bool = True) -> np.ndarray | None:
+    """One gate step: drop the worst failing row in the set, else (when ``readmit``) re-admit the
+    best passing row outside it, else None (the set is final)."""
     ratio = np.where(np.isfinite(res.ratio), res.ratio, np.inf)
     ratio = np.nan_to_num(ratio, nan=np.inf)
     fail_in = np.flatnonzero(inl & (ratio > 1.0))
@@ -95,7 +95,7 @@ def next_set(res: GateResult, inl: np.ndarray, min_keep: int) -> np.ndarray | No
         new[fail_in[np.argmax(ratio[fail_in])]] = False
         return new
     pass_out = np.flatnonzero(~inl & (ratio <= 1.0))
-    if len(pass_out):
+    if len(pass_out) and readmit:
         new = inl.copy()
         new[pass_out[np.argmin(ratio[pass_out])]] = True
         return new

@@ -1,56 +1,48 @@
-"""Initial camera-to-sonar pose: minimal/linear PnP inside RANSAC, and layout checks.
+"""Initial camera-to-sonar pose: the consensus over captures, then the outlier gate.
 
-Hypotheses come from OpenCV's SQPnP on 4-point subsets (all of them when there are few,
-random ones otherwise) in normalised coordinates (K = I, no distortion: the points were
-already passed through P-hat^-1). Each hypothesis is scored by the captures' Mahalanobis
-distances under the full noise model (image + propagated sonar covariance), MSAC style.
-The best consensus is then refined by maximum likelihood and the inlier set decided by the
-F test of :mod:`calib_core.solve.gate` (noise level from the data, stated false-alarm rate),
-so a capture whose target moved between scan and image is named and good ones are kept.
+The consensus (:mod:`calib_core.solve.consensus`) is grown from the tightest 4-capture core
+by a forward search, so several wrong centres cannot outvote the right ones; it says when
+two different sets of captures agree about as well. The set found is then refined by
+maximum likelihood and decided one capture at a time by the F test of
+:mod:`calib_core.solve.gate` (noise level from the data, stated false-alarm rate), so a
+capture whose target moved between scan and image is named and good ones are kept.
 """
 
 from __future__ import annotations
 
-import itertools
-import math
 from dataclasses import dataclass, field
 
-import cv2
 import numpy as np
 
-from calib_core.geometry import T_from_rotvec
-from calib_core.solve.gate import GateResult, gate_test, next_set
-from calib_core.solve.model import CameraData, RigState, check_count, per_camera_stats
-from calib_core.solve.refine import RigProblem, refine
+from calib_core.solve.consensus import CORE, find_consensus, fit_subset, judge, no_consensus_phrase, sqpnp
+from calib_core.solve.gate import ALPHA, GateResult, gate_test, next_set
+from calib_core.solve.model import CameraData, check_count, per_camera_stats
 
 CHI2_2_999 = 13.8155  # chi-square, 2 dof, 99.9 %: the gate for "this capture does not fit"
-CHI2_2_99 = 9.2103  # 99 %: "suspicious"
-CHI2_2_MEDIAN = 1.3863
-MIN_HYPOTHESES = 40
-# The first inlier set keeps what lies within 2x (in sigma) the gate at the robust noise level of
-# the RANSAC pose: generous on purpose, the F test of calib_core.solve.gate then decides.
-PRESELECT = 4.0
-CORE_SHARE = 0.75
+MIN_CHECK = 6  # with fewer captures outliers cannot be told apart
 # Rows in the fit whose linearised deleted statistic reaches this share of the critical value (the
 # EXACT_TOP worst) are tested exactly, by a refit without them.
 EXACT_SCREEN = 0.2
 EXACT_TOP = 3
+READMIT_MARGIN = 4.0  # see _readmit
 
 
 @dataclass
 class PnPStart:
-    """RANSAC outcome for one camera.
+    """Consensus and gate outcome for one camera.
 
     Attributes:
-        T_cam_sonar: the pose after refinement on the consensus set.
+        T_cam_sonar: the pose after refinement on the final set.
         inliers: (N,) bool.
         gate_result: the F test of every row at that pose (:mod:`calib_core.solve.gate`), None when
             too few captures to test.
-        gate: the chi-square gate of the first, generous inlier set (scaled by noise_factor).
-        noise_factor: robust (median) variance factor of the residuals at the RANSAC pose.
-        n_hypotheses: hypotheses tried.
+        gate: the chi-square gate scaled by noise_factor (for display).
+        noise_factor: variance factor (chi2 / dof) of the final set at that pose.
+        n_hypotheses: SQPnP hypotheses tried.
         warnings: things the operator should know.
         miss_m: (N,) distance (m) between each sonar centre, mapped into the camera, and its image ray.
+        clear: False when another set of captures agrees with another pose about as well.
+        rival: (N,) bool of that other set, or None.
     """
 
     T_cam_sonar: np.ndarray
@@ -61,94 +53,43 @@ class PnPStart:
     n_hypotheses: int
     warnings: list[str] = field(default_factory=list)
     miss_m: np.ndarray | None = None
-
-
-def _sqpnp(X: np.ndarray, xy: np.ndarray) -> np.ndarray | None:
-    try:
-        ok, rvec, tvec = cv2.solvePnP(X.reshape(-1, 1, 3), xy.reshape(-1, 1, 2), np.eye(3), None,
-                                      flags=cv2.SOLVEPNP_SQPNP)
-    except cv2.error:
-        return None
-    if not ok or not np.isfinite(rvec).all() or not np.isfinite(tvec).all():
-        return None
-    return T_from_rotvec(rvec.ravel(), tvec.ravel())
-
-
-def _subsets(n: int, max_hypotheses: int, rng: np.random.Generator):
-    if math.comb(n, 4) <= max_hypotheses:
-        return list(itertools.combinations(range(n), 4))
-    return [tuple(int(i) for i in rng.choice(n, 4, replace=False)) for _ in range(max_hypotheses)]
+    clear: bool = True
+    rival: np.ndarray | None = None
 
 
 def ransac_pose(cd: CameraData, gate: float = CHI2_2_999, max_hypotheses: int = 400, seed: int = 0,
                 check_outliers: bool = True) -> PnPStart:
     """Robust initial pose of one camera from its correspondences (see the module doc).
 
-    With fewer than 6 correspondences outliers cannot be told apart, so all are kept (and a
-    warning says so). Raises SessionError with fewer than 4.
+    With fewer than MIN_CHECK correspondences outliers cannot be told apart, so all are kept (and
+    a warning says so). Raises SessionError with fewer than 4.
     """
     n = len(cd)
     check_count(cd.name, n)
     warnings: list[str] = []
-    rng = np.random.default_rng(seed)
-    hyps: list[np.ndarray] = []
-    m2s: list[np.ndarray] = []
-    T_all = _sqpnp(cd.X_sonar_m, cd.xy)
-    if T_all is not None:
-        hyps.append(T_all)
-        m2s.append(per_camera_stats(cd, T_all)[3])
-    if check_outliers and n >= 6:
-        _sample(cd, gate, _subsets(n, max_hypotheses, rng), rng, hyps, m2s)
-    elif n < 6:
+    check = check_outliers and n >= MIN_CHECK
+    if check_outliers and not check:
         warnings.append(f"{cd.name}: only {n} captures, too few to check for a capture that does not fit "
                         f"(6 at least, 9 or more recommended): add sphere positions")
-    best = _best_hypothesis(hyps, m2s, gate)
-    if best is None:
+    if not check:
+        T0 = sqpnp(cd.X_sonar_m, cd.xy)
+        if T0 is None:
+            raise_no_pose(cd)
+        T, _ = fit_subset(cd, np.ones(n, bool), T0)
+        return PnPStart(T, np.ones(n, bool), None, gate, 1.0, 1, warnings, miss_distances(cd, T))
+    cons = find_consensus(cd, max_hypotheses, seed)
+    if cons is None:
         raise_no_pose(cd)
-    T, inl, stat, factor = _gate_loop(cd, best, gate, check_outliers and n >= 6)
-    miss = miss_distances(cd, T)
-    if check_outliers and n >= 6 and inl.sum() < max(4, 0.5 * n):
+    T, inl, stat = _gate_loop(cd, cons.T_cam_sonar, cons.inliers)
+    cons = judge(cd, cons, inl, T)
+    factor = float(np.sum(per_camera_stats(cd, T)[3][inl])) / max(2 * int(inl.sum()) - 6, 1)
+    if not cons.clear:
+        warnings.append(no_consensus_phrase(cd, cons))
+    elif inl.sum() < max(5, 0.5 * n):
         warnings.append(f"{cd.name}: only {int(inl.sum())} of {n} captures agree with one pose; check the "
                         f"detections (wrong sphere found?) and the intrinsics")
-    return PnPStart(T, inl, stat, gate * factor, factor, len(hyps), warnings, miss)
-
-
-def _noise_factor(m2s: list[np.ndarray]) -> float:
-    """Robust variance factor: the least median of squared distances over the hypotheses (LMedS),
-    in units of chi-square(2)'s median. Scales exactly with the stated covariances, so the
-    consensus below does not depend on whether the stated sigmas are right."""
-    meds = [float(np.median(m)) for m in m2s if np.isfinite(m).sum() * 2 > len(m)]
-    return max(min(meds) / CHI2_2_MEDIAN, 1e-12) if meds else np.inf
-
-
-def _sample(cd: CameraData, gate: float, subsets, rng, hyps: list, m2s: list) -> None:
-    """Add 4-point SQPnP hypotheses (and their squared distances) until, by the adaptive rule,
-    an all-inlier subset has been drawn with 99.9 % probability (counted twice over, as noisy
-    4-point poses miss some inliers)."""
-    n = len(cd)
-    rng.shuffle(subsets)
-    best_inl, factor = 0, _noise_factor(m2s)
-    for k, sub in enumerate(subsets):
-        idx = np.asarray(sub)
-        T = _sqpnp(cd.X_sonar_m[idx], cd.xy[idx])
-        if T is not None:
-            hyps.append(T)
-            m2s.append(per_camera_stats(cd, T)[3])
-            factor = min(factor, _noise_factor(m2s[-1:]))  # the running LMedS factor
-            best_inl = max(best_inl, int(np.sum(m2s[-1] < gate * factor)))
-        w = best_inl / n
-        if k >= MIN_HYPOTHESES and w > 0 and k >= 2 * math.log(1e-3) / math.log(max(1 - w**4, 1e-12)):
-            break
-
-
-def _best_hypothesis(hyps: list, m2s: list, gate: float):
-    """MSAC on the gate scaled by the robust noise factor (see :func:`_noise_factor`)."""
-    if not hyps:
-        return None
-    f = _noise_factor(m2s)
-    g = gate * (f if np.isfinite(f) else 1.0)
-    costs = [float(np.sum(np.minimum(m, g))) for m in m2s]
-    return hyps[int(np.argmin(costs))]
+    return PnPStart(T, inl, stat, gate * factor, factor, cons.n_hypotheses, warnings, miss_distances(cd, T),
+                    cons.clear, cons.rival)
 
 
 def raise_no_pose(cd: CameraData):
@@ -158,53 +99,64 @@ def raise_no_pose(cd: CameraData):
                              f"centres belong to the same captures)")
 
 
-def _fit(cd: CameraData, inl: np.ndarray, T0: np.ndarray):
-    """Linear start on the inliers (when it beats T0) then ML refinement: (T_cam_sonar, 6x6 covariance)."""
-    T_lin = _sqpnp(cd.X_sonar_m[inl], cd.xy[inl])
-    cands = [T0] + ([T_lin] if T_lin is not None else [])
-    costs = [float(np.sum(np.minimum(per_camera_stats(cd, T)[3][inl], 1e6))) for T in cands]
-    start = cands[int(np.argmin(costs))]
-    prob = RigProblem([cd], [inl])
-    res = refine(prob, RigState(start, {cd.name: np.eye(4)}), max_outer=6)
-    return res.state.T_ref_sonar, res.cov
+def _gate_loop(cd: CameraData, T0: np.ndarray, inl: np.ndarray):
+    """From the consensus: the F test of :mod:`calib_core.solve.gate` drops failing captures one at a
+    time (worst first, refitting after each); then the captures left out are re-admitted when
+    they agree with the set, jointly (:func:`_readmit`); then the drop test once more.
 
-
-def _gate_loop(cd: CameraData, T0: np.ndarray, gate: float, check: bool):
-    """From the RANSAC pose: its consensus refined by ML, then a generous first set (PRESELECT x
-    the gate, scaled by the robust noise level of the consensus), then the F test of
-    :mod:`calib_core.solve.gate` one capture at a time.
-
-    Returns (pose, inliers, gate result or None, robust noise factor)."""
-    n = len(cd)
-    m2 = per_camera_stats(cd, T0)[3]
-    if not check:
-        T, _ = _fit(cd, np.ones(n, bool), T0)
-        return T, np.ones(n, bool), None, 1.0
-    factor = _noise_factor([m2])
-    # the consensus at the hypothesis (at least CORE_SHARE of the rows: a small core fits itself too
-    # well and swamps good rows), refined by ML before judging the rest
-    k = min(n, max(5, math.ceil(CORE_SHARE * n)))
-    core = m2 <= max(gate * factor, float(np.sort(m2)[k - 1]))
-    if core.sum() >= 5:
-        T0, cov = _fit(cd, core, T0)
-        m2 = gate_test(cd, T0, cov, core).t  # deleted statistics: a small core predicts the rest loosely
-        factor = _noise_factor([m2])
-    inl = m2 < PRESELECT * gate * factor
-    if inl.sum() < 5:
-        inl = np.argsort(m2)[:max(5, n // 2)]
-        inl = np.isin(np.arange(n), inl)
-    min_keep = max(5, (n + 1) // 2)
-    T, seen = T0, set()
-    for _ in range(2 * n + 2):
-        T, cov = _fit(cd, inl, T)
-        res = _exact_deleted(cd, T, inl, gate_test(cd, T, cov, inl))
-        new = next_set(res, inl, min_keep)
-        key = inl.tobytes()
-        if new is None or key in seen:
+    Returns (pose, inliers, gate result)."""
+    T, inl, res = _drop(cd, T0, inl)
+    seen = {inl.tobytes()}
+    # a set of CORE rows leaves 2 dof for its noise level: too few to vouch for others
+    while inl.sum() > CORE and not inl.all():
+        extra = _readmit(cd, T, inl, res)
+        if not extra.any():
             break
-        seen.add(key)
+        T, inl, res = _drop(cd, T, inl | extra)
+        if inl.tobytes() in seen:
+            break
+        seen.add(inl.tobytes())
+    return T, inl, res
+
+
+def _drop(cd: CameraData, T: np.ndarray, inl: np.ndarray):
+    inl = inl.copy()
+    for _ in range(len(cd) + 1):
+        T, cov = fit_subset(cd, inl, T)
+        res = _exact_deleted(cd, T, inl, gate_test(cd, T, cov, inl))
+        new = next_set(res, inl, CORE, readmit=False)
+        if new is None:
+            break
         inl = new
-    return T, inl, res, factor
+    return T, inl, res
+
+
+def _readmit(cd: CameraData, T: np.ndarray, inl: np.ndarray, res: GateResult) -> np.ndarray:
+    """Captures outside ``inl`` that do not plainly contradict it, jointly: (chi2 with them - chi2
+    without) / (2k) over the set's variance factor, within READMIT_MARGIN times the 1 - ALPHA/n
+    quantile of F(2k, dof). Joint, and always against the same set, so wrong centres that each
+    pass narrowly (a small set predicts far rows loosely) cannot swamp it one by one. The margin:
+    the set was grown from the tightest captures, so its variance factor is low by selection and
+    good captures look somewhat bad against it; the drop test that follows, on the larger set,
+    decides them at the stated rate."""
+    from scipy.special import fdtri
+
+    n = len(cd)
+    chi_a = float(np.sum(per_camera_stats(cd, T)[3][inl]))
+    dof_a = 2 * int(inl.sum()) - 6
+    t = np.where(np.isfinite(res.t), res.t, np.inf)
+    extra = np.zeros(n, bool)
+    for j in np.flatnonzero(~inl)[np.argsort(t[~inl])]:
+        if not np.isfinite(t[j]):
+            break
+        trial = inl | extra
+        trial[j] = True
+        T2, _ = fit_subset(cd, trial, T)
+        k = int((trial & ~inl).sum())
+        F = (float(np.sum(per_camera_stats(cd, T2)[3][trial])) - chi_a) / (2 * k) / max(chi_a / dof_a, 1e-300)
+        if F <= READMIT_MARGIN * fdtri(2 * k, dof_a, 1 - ALPHA / n):
+            extra[j] = True
+    return extra
 
 
 def _exact_deleted(cd: CameraData, T: np.ndarray, inl: np.ndarray, res):
@@ -213,13 +165,13 @@ def _exact_deleted(cd: CameraData, T: np.ndarray, inl: np.ndarray, res):
     far enough that the linearisation understates it."""
     ratio = np.nan_to_num(res.ratio, nan=np.inf, posinf=np.inf)
     cand = [i for i in np.argsort(-ratio) if inl[i] and ratio[i] > EXACT_SCREEN][:EXACT_TOP]
-    if not cand or inl.sum() - 1 < 5:
+    if not cand or inl.sum() - 1 < CORE:
         return res
     F, crit, t, dof = res.F.copy(), res.crit.copy(), res.t.copy(), res.dof.copy()
     for i in cand:
         m = inl.copy()
         m[i] = False
-        T2, cov2 = _fit(cd, m, T)
+        T2, cov2 = fit_subset(cd, m, T)
         g = gate_test(cd, T2, cov2, m)
         F[i], crit[i], t[i], dof[i] = g.F[i], g.crit[i], g.t[i], g.dof[i]
     return GateResult(t, F, crit, dof, res.variance_factor)

@@ -14,6 +14,7 @@ between them. Lengths in metres, angles in radians (the reports print mm and deg
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass, field
 
@@ -22,6 +23,7 @@ import numpy as np
 from calib_core.geometry import invert_T
 from calib_core.solve.model import RigState, per_camera_stats
 from calib_core.solve.refine import Link, RigProblem, pose_covariance, refine
+from calib_core.solve.systematic import systematic_term
 from calib_core.solve.scale import choose_scale, scale_mode
 from calib_core.solve.single import CameraSolution
 
@@ -85,12 +87,14 @@ def solve_rig(solutions: dict[str, CameraSolution], links: dict[str, Link], refe
     prob_s = RigProblem(cams, masks, {n: links[n] for n in names[1:]}, estimate_scale=True)
     ch = choose_scale(prob, res, prob_s, scale_mode(estimate_scale), robust)
     res, prob = ch.res, ch.problem
-    scale_sigma = math.sqrt(res.cov[-1, -1] * max(1.0, res.variance_factor)) if ch.estimated else None
     note = ch.note
     vf = res.variance_factor if res.dof > 0 else 1.0
+    # the stated covariance scaled by the variance factor, plus the model errors common to all captures
+    res_c = dataclasses.replace(res, cov=res.cov * max(1.0, vf) + systematic_term(prob, res.state, robust))
+    scale_sigma = math.sqrt(res_c.cov[-1, -1]) if ch.estimated else None
     Ts = {n: res.state.T_cam_sonar(n) for n in names}
-    covs = {n: pose_covariance(prob, res, n) * max(1.0, vf) for n in names}
-    covs7 = {n: pose_covariance(prob, res, n, with_scale=True) * max(1.0, vf) for n in names} if prob.estimate_scale else {}
+    covs = {n: pose_covariance(prob, res_c, n) for n in names}
+    covs7 = {n: pose_covariance(prob, res_c, n, with_scale=True) for n in names} if prob.estimate_scale else {}
     rms, mah = {}, {}
     for n, cd, m in zip(names, cams, masks):
         r_px, _, _, m2, _ = per_camera_stats(cd, Ts[n], res.state.scale)

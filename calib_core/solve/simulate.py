@@ -97,3 +97,15 @@ def synthetic_rig(seed: int, n_captures: int = 9, sigma_px: float = 0.3, sigma_m
     ids = [f"p{i + 1:02d}" for i in range(n_captures)]
     return SyntheticRig(cams, T, T["cam2"] @ invert_T(T["cam1"]), X_true, scale, ids, X_meas,
                         cov_X, uv, cuv, vis)
+
+
+def wrong_centres(uv_px: np.ndarray, k: int, rng: np.random.Generator, lo_px: float = 30.0,
+                  hi_px: float = 80.0) -> tuple[np.ndarray, np.ndarray]:
+    """``uv_px`` with ``k`` rows moved ``lo_px``-``hi_px`` in random directions (a decoy found, a
+    mislocated ball: tens of pixels off, where a sphere could be). Returns (uv, wrong rows)."""
+    uv = np.asarray(uv_px, float).copy()
+    bad = rng.choice(len(uv), k, replace=False)
+    for i in bad:
+        d = rng.normal(size=2)
+        uv[i] += rng.uniform(lo_px, hi_px) * d / np.linalg.norm(d)
+    return uv, np.sort(bad)

@@ -13,6 +13,7 @@ from calib_core.solve.pnp import layout_warnings, ransac_pose
 from calib_core.solve.refine import RigProblem, refine
 from calib_core.solve.range_scale import range_scale_choice
 from calib_core.solve.scale import choose_scale, scale_mode
+from calib_core.solve.systematic import systematic_term
 
 
 
@@ -73,6 +74,13 @@ def _scale_choice(cd: CameraData, used, prob, res, estimate_scale, robust, range
     return range_scale_choice(cd, used, prob, res, mode, robust, range_model)
 
 
+def _systematic(cd: CameraData, used: np.ndarray, state: RigState, robust) -> np.ndarray:
+    """6x6 pose covariance of the offsets common to all captures (calib_core.solve.systematic),
+    on the plain pose problem at the final pose and scale."""
+    st = RigState(state.T_ref_sonar, {cd.name: np.eye(4)}, state.scale)
+    return systematic_term(RigProblem([cd], [used]), st, robust)
+
+
 def solve_camera(cd: CameraData, estimate_scale: bool | str | None = None, robust: str | None = None, loo: bool = True,
                  check_outliers: bool = True, seed: int = 0, progress=None,
                  diameter_rel_sigma: float = 0.0, range_model=None) -> CameraSolution:
@@ -102,6 +110,7 @@ def solve_camera(cd: CameraData, estimate_scale: bool | str | None = None, robus
     vf = res.variance_factor if res.dof > 0 else 1.0
     inflate = max(1.0, vf)
     cov_full = res.cov * inflate + extra
+    cov_full[:6, :6] += _systematic(cd, used, res.state, robust)  # model errors common to all captures
     if ch.estimated:
         scale_sigma = math.sqrt(cov_full[-1, -1])
     cov6 = cov_full[:6, :6]

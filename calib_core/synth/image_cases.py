@@ -6,7 +6,10 @@ Each case is one rendered camera image of a scene kind (no sonar, no session fil
   no background frame;
 - "big": the same room with the ball close (apparent radius up to ~half the frame height);
 - "turbid": the canal scene with strong attenuation, veil and blur, sphere 2.2-3.8 m away
-  (contrast falls with distance).
+  (contrast falls with distance);
+- "chair": the room with a ball of any colour (grey often: a gym ball) resting on a chair,
+  its dark backrest right behind the ball and the seat's edge along its bottom, so that the
+  edges of things touching the sphere run next to its outline (real data set A).
 
 ``render_case(kind, seed, scale)`` returns the image, the camera, the sphere radius, the true
 projection of the sphere centre (raw px), the visible fraction of the outline and, where the
@@ -21,12 +24,12 @@ import numpy as np
 
 from calib_core.camera import CameraModel
 from calib_core.geometry import invert_T, transform_points
-from calib_core.synth import room, world
+from calib_core.synth import range_scenes, room, world
 from calib_core.synth.camera_render import RenderOptions, Water, finish_image, render_radiance
 from calib_core.synth.rig import sample_rig, sample_target_center, silhouette_uv
 from calib_core.synth.scene import Scene
 
-KINDS = ("clutter", "big", "turbid")
+KINDS = ("clutter", "big", "turbid", "chair")
 
 
 @dataclass
@@ -53,6 +56,8 @@ def render_case(kind: str, seed: int, scale: float = 0.5, with_ball: bool = True
                          noise_dn=float(rng.uniform(1.0, 3.0)), shot_gain=float(rng.uniform(0.05, 0.3)))
     if kind == "turbid":
         return _turbid(rng, rig, cam, T_wc, opts, seed, with_ball)
+    if kind == "chair":
+        return _chair(rng, rig, cam, T_wc, opts, seed, with_ball)
     radius = float(rng.uniform(0.1, 0.3))
     floor_z = float(min(T_wc[2, 3], 0.0) - rng.uniform(0.6, 1.3))
     if kind == "big":
@@ -86,6 +91,22 @@ def _close_centre(rng, cam, T_wc, radius, floor_z):
                 and c[2] - radius > floor_z + 0.05):
             return c
     raise RuntimeError("could not place a close sphere")
+
+
+def _chair(rng, rig, cam, T_wc, opts, seed, with_ball=True) -> ImageCase:
+    radius = float(rng.uniform(0.15, 0.33))
+    floor_z = float(min(T_wc[2, 3], 0.0) - rng.uniform(0.9, 1.4))
+    c, _ = sample_target_center(rng, rig, radius, "cam1", rng.random() < 0.2,
+                                lambda c: c[2] - radius > floor_z + 0.35, dist_range=(1.2, 4.0))
+    static = room.room_scene(rng, floor_z, [c])
+    style = room.ball_style(rng)
+    if rng.random() < 0.5:  # grey, as a gym ball
+        style["albedo"] = tuple(np.full(3, float(rng.uniform(0.35, 0.65))))
+    ball = room.ball_parts(rng, dict(style, holder="stick"), c, radius, floor_z, T_wc[:3, 3])[0]
+    chair = range_scenes.chair(rng, c, radius, floor_z, T_wc[:3, 3])
+    L, _ = render_radiance(Scene(tuple(static + ([ball, chair] if with_ball else []))), cam, T_wc,
+                           room.room_air(rng), aa=opts.aa)
+    return _finish(L, None, cam, T_wc, c, radius, opts, rng, f"chair/s{seed}")
 
 
 def _turbid(rng, rig, cam, T_wc, opts, seed, with_ball=True) -> ImageCase:

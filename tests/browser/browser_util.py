@@ -1,4 +1,5 @@
-"""Helpers shared by the Chromium tests and the browser benchmark (no fixtures here)."""
+"""Helpers shared by the Chromium tests and the browser benchmark (the fixtures are in
+chromium_fixtures.py, a pytest plugin loaded by tests/conftest.py)."""
 
 from __future__ import annotations
 
@@ -25,16 +26,33 @@ def wait_for(cond, timeout=60.0, what="condition", poll=0.05):
 
 
 @contextlib.contextmanager
-def chromium(profile_dir, width=1500, height=860):
+def chromium_browser():
+    """Debian's Chromium, headless, driven by Playwright (FileNotFoundError when not installed)."""
     from playwright.sync_api import sync_playwright
 
     exe = shutil.which("chromium")
     if exe is None:
         raise FileNotFoundError("Debian chromium is not installed")
     with sync_playwright() as p:
-        ctx = p.chromium.launch_persistent_context(str(profile_dir), executable_path=exe, headless=True,
-                                                   args=CHROMIUM_ARGS, viewport={"width": width, "height": height})
-        ctx.set_default_timeout(30_000)
+        browser = p.chromium.launch(executable_path=exe, headless=True, args=CHROMIUM_ARGS)
+        try:
+            yield browser
+        finally:
+            browser.close()
+
+
+def new_context(browser, width=1500, height=860):
+    """A fresh browser context (its own cookies and cache) with the tests' viewport and timeout."""
+    ctx = browser.new_context(viewport={"width": width, "height": height})
+    ctx.set_default_timeout(30_000)
+    return ctx
+
+
+@contextlib.contextmanager
+def chromium(width=1500, height=860):
+    """One Chromium and one context, outside pytest (the benchmark)."""
+    with chromium_browser() as browser:
+        ctx = new_context(browser, width, height)
         try:
             yield ctx
         finally:

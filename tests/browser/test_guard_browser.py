@@ -9,21 +9,13 @@ the page.
 from __future__ import annotations
 
 import http.server
-import shutil
-import sys
 import threading
-from pathlib import Path
 
 import pytest
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-
-from test_app_state import make_session  # noqa: E402
+from test_app_state import make_session
 
 pytestmark = pytest.mark.browser
-
-ARGS = ["--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run", "--disable-background-networking",
-        "--disable-component-update", "--disable-sync"]
 
 EVIL_JS = """async (target) => {
     const result = {opened: false, messages: 0, fetched: null};
@@ -57,9 +49,7 @@ class _Evil(http.server.BaseHTTPRequestHandler):
         pass
 
 
-@pytest.mark.skipif(shutil.which("chromium") is None, reason="Debian chromium is not installed")
-def test_token_and_origin_in_chromium(tmp_path):
-    playwright = pytest.importorskip("playwright.sync_api")
+def test_token_and_origin_in_chromium(tmp_path, browser):
     import viser
 
     from app.server import Workbench
@@ -69,41 +59,34 @@ def test_token_and_origin_in_chromium(tmp_path):
     threading.Thread(target=evil.serve_forever, daemon=True).start()
     connected = []
     wb.server.on_client_connect(lambda c: connected.append(c.client_id))
+    page = browser.new_page()
+    other = browser.new_page()
     try:
-        with playwright.sync_playwright() as p:
-            ctx = p.chromium.launch_persistent_context(str(tmp_path / "profile"), executable_path=shutil.which("chromium"),
-                                                       headless=True, args=ARGS)
-            ctx.set_default_timeout(30_000)
-            try:
-                page = ctx.new_page()
-                bare = page.goto(f"http://127.0.0.1:{wb.port}/")
-                assert bare.status == 403 and "token" in page.content()
-                assert not connected
-                page.goto(wb.url)  # the printed URL: the page loads and its websocket connects
-                page.get_by_text("sonarcal workbench", exact=False).first.wait_for()
-                assert len(connected) == 1
-                cookies = [c for c in ctx.cookies() if c["name"].startswith("sonarcal_token_")]
-                assert cookies and cookies[0]["httpOnly"] and cookies[0]["sameSite"] == "Strict"
-                refused_before = wb.guard.refused
-                # another site, open in the same browser that holds the workbench's cookie
-                other = ctx.new_page()
-                other.goto(f"http://localhost:{evil.server_address[1]}/")
-                got = other.evaluate(EVIL_JS, {"ws": f"ws://127.0.0.1:{wb.port}/", "proto": f"viser-v{viser.__version__}",
-                                               "page": f"http://127.0.0.1:{wb.port}/"})
-                assert got["opened"] is False and got["messages"] == 0
-                assert got["fetched"] == "blocked" or "sonarcal" not in (got["fetched"] or "").lower() or \
-                    "token" in got["fetched"]
-                assert len(connected) == 1 and wb.guard.refused > refused_before
-            finally:
-                ctx.close()
+        bare = page.goto(f"http://127.0.0.1:{wb.port}/")
+        assert bare.status == 403 and "token" in page.content()
+        assert not connected
+        page.goto(wb.url)  # the printed URL: the page loads and its websocket connects
+        page.get_by_text("sonarcal workbench", exact=False).first.wait_for()
+        assert len(connected) == 1
+        cookies = [c for c in browser.cookies() if c["name"].startswith(f"sonarcal_token_{wb.port}")]
+        assert cookies and cookies[0]["httpOnly"] and cookies[0]["sameSite"] == "Strict"
+        refused_before = wb.guard.refused
+        # another site, open in the same browser that holds the workbench's cookie
+        other.goto(f"http://localhost:{evil.server_address[1]}/")
+        got = other.evaluate(EVIL_JS, {"ws": f"ws://127.0.0.1:{wb.port}/", "proto": f"viser-v{viser.__version__}",
+                                       "page": f"http://127.0.0.1:{wb.port}/"})
+        assert got["opened"] is False and got["messages"] == 0
+        assert got["fetched"] == "blocked" or "sonarcal" not in (got["fetched"] or "").lower() or \
+            "token" in got["fetched"]
+        assert len(connected) == 1 and wb.guard.refused > refused_before
     finally:
+        page.close()
+        other.close()
         evil.shutdown()
         wb.stop()
 
 
-@pytest.mark.skipif(shutil.which("chromium") is None, reason="Debian chromium is not installed")
-def test_script_in_session_fields_stays_text_in_chromium(tmp_path):
-    playwright = pytest.importorskip("playwright.sync_api")
+def test_script_in_session_fields_stays_text_in_chromium(tmp_path, browser):
     import yaml
 
     from app.server import Workbench
@@ -116,22 +99,16 @@ def test_script_in_session_fields_stays_text_in_chromium(tmp_path):
     (root / "session.yaml").write_text(yaml.safe_dump(manifest, allow_unicode=True))
     (root / "detections.yaml").unlink(missing_ok=True)
     wb = Workbench(root, port=0, uploads_dir=tmp_path / "uploads")
+    page = browser.new_page()
     try:
-        with playwright.sync_playwright() as p:
-            ctx = p.chromium.launch_persistent_context(str(tmp_path / "profile"), executable_path=shutil.which("chromium"),
-                                                       headless=True, args=ARGS)
-            ctx.set_default_timeout(30_000)
-            try:
-                page = ctx.new_page()
-                dialogs = []
-                page.on("dialog", lambda d: (dialogs.append(d.message), d.dismiss()))
-                page.goto(wb.url)
-                page.get_by_text("Sitzung über Wasser", exact=False).first.wait_for()
-                page.get_by_text("<iframe srcdoc=", exact=False).first.wait_for()  # shown as text
-                assert page.evaluate("document.querySelectorAll('iframe').length") == 0
-                assert page.evaluate("document.querySelectorAll('img[src=\"x\"]').length") == 0
-                assert not dialogs and page.title() != "1"
-            finally:
-                ctx.close()
+        dialogs = []
+        page.on("dialog", lambda d: (dialogs.append(d.message), d.dismiss()))
+        page.goto(wb.url)
+        page.get_by_text("Sitzung über Wasser", exact=False).first.wait_for()
+        page.get_by_text("<iframe srcdoc=", exact=False).first.wait_for()  # shown as text
+        assert page.evaluate("document.querySelectorAll('iframe').length") == 0
+        assert page.evaluate("document.querySelectorAll('img[src=\"x\"]').length") == 0
+        assert not dialogs and page.title() != "1"
     finally:
+        page.close()
         wb.stop()

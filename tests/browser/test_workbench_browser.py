@@ -10,7 +10,6 @@ detections. A second browser must see the same session. Screenshots go to test-a
 from __future__ import annotations
 
 import json
-import math
 import re
 import time
 import zipfile
@@ -18,23 +17,9 @@ import zipfile
 import numpy as np
 import pytest
 
-from browser_util import canvas_box, choose, chromium, page_text, shot
+from browser_util import canvas_box, choose, click_pixel, disk_detections, page_text, screen_of, shot, wait_for
 
 pytestmark = pytest.mark.browser
-
-
-T0 = [time.monotonic()]
-
-
-def wait_for(cond, timeout=60.0, what="condition"):
-    end = time.monotonic() + timeout
-    print(f"[{time.monotonic() - T0[0]:6.1f}s] waiting for {what}")
-    while time.monotonic() < end:
-        v = cond()
-        if v:
-            return v
-        time.sleep(0.1)
-    raise AssertionError(f"timed out waiting for {what}")
 
 
 @pytest.fixture(scope="module")
@@ -54,15 +39,6 @@ def workbench(session_root):
     assert wb.host == "127.0.0.1"
     yield wb
     wb.stop()
-
-
-@pytest.fixture(scope="module")
-def browser(tmp_path_factory):
-    try:
-        with chromium(tmp_path_factory.mktemp("chromium")) as ctx:
-            yield ctx
-    except FileNotFoundError as e:
-        pytest.skip(str(e))
 
 
 def _camera_settled(client, quiet_s: float = 0.6, timeout: float = 20.0) -> None:
@@ -89,35 +65,6 @@ def _click_when_settled(page, client, X_world, done, what: str, tries: int = 3) 
         except AssertionError:
             if k == tries - 1:
                 raise
-
-
-def click_pixel(page, wb, client, cam: str, uv) -> None:
-    """Click where raw pixel ``uv`` of camera ``cam``'s board appears after 'View through cam'."""
-    model = wb.state.camera(cam)
-    T, rw, rh = wb.images.board_geometry(cam)
-    d = T[2, 3]
-    box = canvas_box(page)
-    k = box["height"] / (2 * d * math.tan(client.camera.fov / 2))  # screen px per metre on the board
-    x = box["x"] + box["width"] / 2 + ((uv[0] + 0.5) / model.width_px - 0.5) * rw * k
-    y = box["y"] + box["height"] / 2 + ((uv[1] + 0.5) / model.height_px - 0.5) * rh * k
-    page.mouse.click(x, y)
-
-
-def screen_of(client, box, X_world):
-    """Canvas position (CSS px) of a world point seen by ``client``'s camera (OpenCV convention)."""
-    import viser.transforms as vtf
-
-    R = vtf.SO3(np.asarray(client.camera.wxyz)).as_matrix()
-    pc = R.T @ (np.asarray(X_world, float) - np.asarray(client.camera.position))
-    f = box["height"] / 2 / math.tan(client.camera.fov / 2)
-    return box["x"] + box["width"] / 2 + f * pc[0] / pc[2], box["y"] + box["height"] / 2 + f * pc[1] / pc[2]
-
-
-def disk_detections(root):
-    from calib_core.detections import load_detections
-    from calib_core.session import load_session
-
-    return load_detections(load_session(root))
 
 
 def test_operator_session_in_chromium(workbench, browser, session_root):

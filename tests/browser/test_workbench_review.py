@@ -7,7 +7,7 @@
   through "View through" and on the boards as the default view shows them;
 - undo and redo after a reload of the page;
 - the Fused tab puts the fused cloud alone on screen; the drag handle refits on release.
-One server per session and one browser for the module; small images (scale 0.25).
+One server per session and one browser context for the module; small images (scale 0.25).
 """
 
 from __future__ import annotations
@@ -20,19 +20,10 @@ import numpy as np
 import pytest
 import yaml
 
-from browser_util import (board_point_world, canvas_box, chromium, click_pixel, disk_detections, only_client,
-                          page_text, screen_of, shot, wait_for)
+from browser_util import (board_point_world, canvas_box, click_pixel, disk_detections, only_client, screen_of, shot,
+                          wait_for)
 
 pytestmark = pytest.mark.browser
-
-
-@pytest.fixture(scope="module")
-def browser(tmp_path_factory):
-    try:
-        with chromium(tmp_path_factory.mktemp("chromium")) as ctx:
-            yield ctx
-    except FileNotFoundError as e:
-        pytest.skip(str(e))
 
 
 @pytest.fixture(scope="module")
