@@ -454,7 +454,8 @@ def _choose(judged: list[_Judged], r: float, seed) -> tuple[_Judged | None, dict
         at = " and ".join(f"{np.linalg.norm(k.fit.center_m):.2f} m" for k in nominal[:3])
         pos = "; ".join(str(np.round(k.fit.center_m, 3).tolist()) for k in nominal[:3])
         return None, {"reason": f"two candidates: round objects of the sphere's size at {at} "
-                                f"(centres {pos} m)", "n_candidates": len(good)}
+                                f"(centres {pos} m)", "n_candidates": len(good),
+                      "two_candidates": _centres(nominal)}
     if not nominal:  # sphere-like, but not of session.yaml's size: a decoy or a wrong diameter
         k = max(other, key=lambda j: j.score)
         return None, {"reason": f"only a sphere of another size: seen {2 * k.radius_cone_m:.3f} m across, "
@@ -467,9 +468,16 @@ def _choose(judged: list[_Judged], r: float, seed) -> tuple[_Judged | None, dict
         seen = f", seen {2 * k.radius_cone_m:.2f} m across" if np.isfinite(k.radius_cone_m) else ""
         extras["warning"] = (f"another round object at {np.linalg.norm(k.fit.center_m):.2f} m{seen} "
                              f"scored {k.score:.2f} against {chosen.score:.2f}")
+        extras["other_candidates"] = _centres(nominal[1:])
     if other:
         extras["ignored_other_sizes_m"] = [round(2 * k.radius_cone_m, 4) for k in other]
     return chosen, extras
+
+
+def _centres(judged: list[_Judged]) -> list[list[float]]:
+    """Candidates' fitted centres (m, sonar frame) as an entry records them (for the
+    session-level choice, :mod:`calib_core.disambiguate_sonar`)."""
+    return [[round(float(v), 4) for v in j.fit.center_m] for j in judged]
 
 
 def _dedupe(judged: list[_Judged], r: float) -> list[_Judged]:
