@@ -108,6 +108,9 @@ def test_detect_session_settles_them_with_the_static_scenery(rock_session):
         assert np.linalg.norm(np.asarray(son["center"]) - truth) < 0.01
         assert son["resolved_by"].startswith("static scenery") and len(son["two_candidates"]) == 2
         assert son["status"] == "auto"
+    # a second run keeps the settled entries as they are (their fingerprints record the seed)
+    again = detect_session(s, dets, workers=1)
+    assert all(again[c]["sonar"] == dets[c]["sonar"] for c in dets)
 
 
 def test_detect_session_settles_a_lone_decoy_with_the_images(tmp_path):
