@@ -343,6 +343,7 @@ def _detect_once(image_rgb: np.ndarray, cam: CameraModel, sphere_radius_m: float
     if det.found:
         det.extras["time_ms"] = round(1e3 * (time.perf_counter() - t0), 2)
         det.extras["region_ms"] = round(1e3 * (t_region - t0), 2)
+        det.extras["refined"] = len(fits)  # candidates fitted at full resolution
     return det
 
 
