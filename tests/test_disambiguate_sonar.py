@@ -74,6 +74,27 @@ def test_image_cue_picks_the_candidate_on_the_image_detection():
     assert choose_by_image(np.array([target, near]), cam, T, img) is None
 
 
+def test_a_clear_winner_records_the_round_object_it_beat():
+    """The losers' centres are sightings for the scenery cue in other captures."""
+    from conftest import _sphere_cloud
+
+    rng = np.random.default_rng(0)
+    target, u = np.array([0.4, 0.1, 1.8]), -ROCK_SONAR_M / np.linalg.norm(ROCK_SONAR_M)
+    recorded = 0
+    for cos_min in (0.3, 0.5, 0.7, 0.8):  # rocks showing less and less of themselves, noisier than the ball
+        pts, _ = _sphere_cloud(target, R, 400, rng)
+        d = rng.normal(size=(2000, 3))
+        d = (d / np.linalg.norm(d, axis=1, keepdims=True))
+        d = d[d @ u > cos_min][:150]
+        rock = ROCK_SONAR_M + R * d + rng.normal(scale=0.008, size=d.shape)
+        det = detect_sphere_in_cloud(np.vstack([pts, rock]), R, beam_width_deg=0.1)
+        if det.found and "another round object" in det.extras.get("warning", ""):
+            assert np.linalg.norm(det.center_sonar_m - target) < 0.01
+            assert np.min(np.linalg.norm(np.asarray(det.extras["other_candidates"]) - ROCK_SONAR_M, axis=1)) < 0.03
+            recorded += 1
+    assert recorded >= 1
+
+
 # --- in detect_session ------------------------------------------------------------------------
 
 @pytest.fixture(scope="module")
