@@ -73,7 +73,7 @@ def main(argv=None) -> int:
     print("Blank images (the sweep's sessions): the static-scenery cue only")
     table(lambda p, s: _sweep_session(args.cache, p, s, args.scale), args.workers)
     if args.all:
-        print(f"\nEvery sweep session (seeds 41-60, blank images): found per capture -> after the session's choice")
+        print("\nEvery sweep session (seeds 41-60, blank images): found per capture -> after the session's choice")
         sweep_all(args.cache, args.scale, args.workers)
     if not args.no_full:
         print("\nImages rendered: the static-scenery cue, then the images")
