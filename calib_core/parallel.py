@@ -73,11 +73,13 @@ def _scan_task(crops):
 
 
 def _cloud_readers(data, todo) -> list[str]:
-    """open3d when sonar tasks will read .ply / .pcd clouds: imported once in the fork server
-    rather than once in every worker (it takes about a second)."""
+    """open3d when sonar tasks will read compressed PCD clouds (the only kind numpy does not
+    read; see :mod:`calib_core.io.cloud_binary`): imported once in the fork server rather than
+    once in every worker (it takes about a second)."""
+    from calib_core.io.cloud_binary import needs_open3d
+
     cids = {cid for cid, sensor in todo if sensor == "sonar"}
-    suffixes = {data.session.capture(c).cloud_path.suffix.lower() for c in cids}
-    return ["open3d"] if suffixes & {".ply", ".pcd"} else []
+    return ["open3d"] if any(needs_open3d(data.session.capture(c).cloud_path) for c in cids) else []
 
 
 def _prepare(data, todo) -> None:
