@@ -151,32 +151,56 @@ def _run_pool(data, todo, progress, n: int, beam_ids: list, beam_detections: dic
     return [_unwrap(*r) for r in results]
 
 
+class _Queue:
+    """The pool's work in priority order, at most ``limit`` tasks handed to the pool at a time
+    (the pool itself runs them first come, first served): the beam width's crops first, its scan
+    as soon as the crops are in, then the sonar tasks waiting for the width, the images last, as
+    nothing waits for them."""
+
+    def __init__(self, ex, limit: int):
+        self.ex, self.limit, self.waiting, self.running = ex, limit, [], {}
+
+    def add(self, items: list, first: bool = False) -> None:
+        """Queue ``[(key, function, args)]``, ahead of the waiting tasks with ``first``."""
+        self.waiting = [*items, *self.waiting] if first else [*self.waiting, *items]
+        self.fill()
+
+    def fill(self) -> None:
+        while self.waiting and len(self.running) < self.limit:
+            key, fn, args = self.waiting.pop(0)
+            self.running[self.ex.submit(fn, *args)] = key
+
+    def finished(self, timeout: float):
+        from concurrent.futures import FIRST_COMPLETED, wait
+
+        done, _ = wait(self.running, timeout=timeout, return_when=FIRST_COMPLETED)
+        return [(self.running.pop(f), f.result()) for f in done]
+
+
 def _drain(ex, data, todo, progress, results: list, later: list, crop_ids: list, beam_detections, n: int) -> None:
     """Submit the tasks and collect their results as they finish (the beam width first)."""
-    from concurrent.futures import FIRST_COMPLETED, wait
-
+    q = _Queue(ex, n + 1)
     crops: dict = {}
-    # first the beam width's crops (its scan and then every sonar task wait for them)
-    futures = {ex.submit(_crop_task, cid, beam_detections): ("crop", cid) for cid in crop_ids}
-    futures.update({ex.submit(_task, (*t, None)): k for k, t in enumerate(todo) if k not in later})
+    # the beam width's crops first (its scan and then every sonar task wait for them)
+    q.add([(("crop", cid), _crop_task, (cid, beam_detections)) for cid in crop_ids])
+    q.add([(k, _task, ((*t, None),)) for k, t in enumerate(todo) if k not in later])
     done, label = 0, f"detecting in {n} processes"
-    while futures:
-        finished, _ = wait(futures, timeout=0.5, return_when=FIRST_COMPLETED)
+    while q.running:
+        finished = q.finished(0.5)
         if not finished and progress:
             progress(done, len(todo), label)  # also lets the caller cancel between results
-        for f in finished:
-            k = futures.pop(f)
+        for k, out in finished:
             if isinstance(k, tuple):
-                crops[k[1]] = f.result()
+                crops[k[1]] = out
                 if len(crops) == len(crop_ids):
-                    futures[ex.submit(_scan_task, [crops[c] for c in crop_ids])] = -1
-                continue
-            if k == -1:
-                data.beam_width_deg = f.result()
+                    q.add([(-1, _scan_task, ([crops[c] for c in crop_ids],))], first=True)
+            elif k == -1:
+                data.beam_width_deg = out
                 beam = data.effective_beam_width_deg
-                futures.update({ex.submit(_task, (*todo[j], beam)): j for j in later})
-                continue
-            results[k] = f.result()
-            done, label = done + 1, f"{results[k][0]} {results[k][1]}"
-            if progress:
-                progress(done, len(todo), label)
+                q.add([(j, _task, ((*todo[j], beam),)) for j in later], first=True)
+            else:
+                results[k] = out
+                done, label = done + 1, f"{out[0]} {out[1]}"
+                if progress:
+                    progress(done, len(todo), label)
+        q.fill()
