@@ -83,10 +83,13 @@ def _cloud_readers(data, todo) -> list[str]:
 
 
 def _prepare(data, todo) -> None:
-    """Camera models and background models, computed once in the parent for every worker."""
-    for cam in {sensor for _, sensor in todo if sensor != "sonar"}:
-        data.camera(cam)
-        data.background(cam)
+    """Camera models and background models, computed once in the parent for every worker, one
+    thread per camera (decoding and the median release the GIL)."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    cams = sorted({sensor for _, sensor in todo if sensor != "sonar"})
+    with ThreadPoolExecutor(max(1, min(len(cams), os.cpu_count() or 1))) as ex:
+        list(ex.map(lambda cam: (data.camera(cam), data.background(cam)), cams))
 
 
 def _unwrap(cid, sensor, out):
