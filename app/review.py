@@ -14,6 +14,7 @@ import numpy as np
 
 from app.common import client_tag, guarded, notify
 from calib_core.diagnose import wording
+from calib_core.detect.reasons import entry_note
 from calib_core.errors import SessionError
 from calib_core.markup import escape_md
 from calib_core.pipeline import refit_sonar
@@ -113,7 +114,7 @@ class ReviewPanel:
                     row["residual"] = max(row["residual"] or 0.0, res)
                 flag = st.flag_for(cap.id, sensor)
                 row["sensors"][sensor] = {"status": status, "score": e.get("score"), "residual_px": res,
-                                          "found": e.get("center") is not None, "reason": e.get("reason"),
+                                          "found": e.get("center") is not None, "reason": entry_note(e) or None,
                                           "flag": flag}
                 if status == "rejected":
                     row["rejected"] = True

@@ -11,9 +11,17 @@ Two tables:
    every sensor x holder pair, searched with the width estimated from 8 other captures of the
    pair (as a session would).
 
+3. ``--sweep``: sessions of every range preset (SWEEP_PRESETS) for seeds 41-60 at ``--scale``
+   (0.5 by default, the resolution of the end-to-end sweeps, which decides where the generator
+   places the sphere), handled as ``sonarcal detect`` does (calib_core.pipeline.detect_session:
+   the session's beam width, then every capture): found / refused per preset with the reasons,
+   centre error against ground truth. The sessions' images are not rendered (the range side
+   never reads them; clouds, placements and ground truth are those of the full generator).
+
 Targets (issue 11): recall >= 98 %, centre bias < 3 mm for LiDAR and RGB-D.
 
     .venv/bin/python benchmarks/bench_detection_range.py [--seeds 3] [--captures 60] [--cache DIR]
+    .venv/bin/python benchmarks/bench_detection_range.py --sweep [--first 41 --last 60] [--scale 0.5]
 """
 
 from __future__ import annotations
@@ -38,8 +46,10 @@ from calib_core.synth.generate import generate_session  # noqa: E402
 from calib_core.synth.ground_truth import load_ground_truth  # noqa: E402
 from calib_core.synth.range_capture import range_capture  # noqa: E402
 
-PRESETS = ("lidar-chair", "rgbd-stick", "rgbd-table", "seabed-slab")
-PAIRS = [(s, h) for s in ("lidar16", "rgbd", "sonar") for h in ("chair", "table", "stick")]
+PRESETS = ("lidar-chair", "rgbd-stick", "rgbd-table", "seabed-slab", "carried")
+SWEEP_PRESETS = ("lidar-chair", "rgbd-stick", "rgbd-table", "seabed-slab", "clutter", "seabed", "carried")
+PAIRS = [(s, h) for s in ("lidar16", "rgbd", "sonar") for h in ("chair", "table", "stick")] + [
+    ("lidar16", "hand"), ("rgbd", "hand")]
 TARGET_RECALL = 0.98
 TARGET_BIAS_MM = 3.0
 
@@ -53,7 +63,10 @@ def _session(cache: Path, preset: str, seed: int) -> Path:
 
 def _why(reason: str) -> str:
     """A refusal's reason without the candidate's range (to group misses)."""
-    return reason.split("away: ", 1)[-1].rstrip(")") if "away: " in reason else reason
+    if "away: " not in reason:
+        return reason
+    why = reason.split("away: ", 1)[-1]
+    return why[:-1] if why.endswith(")") else why
 
 
 def _stats(errs: list, n: int, along: list) -> dict:
@@ -127,15 +140,95 @@ def _print(title: str, rows: list, misses: Counter) -> None:
           f"{'MET' if worst < TARGET_BIAS_MM else 'MISSED'}")
 
 
+def _blank_radiance(scene, cam, T_world_cam, water, aa: int = 4, **_):
+    """Stands in for the camera renderer in the sweep (the range side reads no image)."""
+    return np.zeros((cam.height_px, cam.width_px, 3), np.float32), None
+
+
+def _sweep_session(cache: Path, preset: str, seed: int, scale: float) -> Path:
+    import calib_core.synth.generate as gen
+
+    root = cache / f"sweep-{preset}-s{seed}-x{scale:g}"
+    if not (root / "session.yaml").is_file() or load_ground_truth(root) is None:
+        real = gen.render_radiance
+        gen.render_radiance = _blank_radiance
+        try:
+            generate_session(root, preset, seed, scale=scale)
+        finally:
+            gen.render_radiance = real
+    return root
+
+
+def _sweep_one(root: Path) -> tuple[list, list, float, str]:
+    """(errors (m) of the found captures with their truths, refusals, beam width, sensor)."""
+    from calib_core.pipeline import SessionData, detect_sonar_entry, session_beam_width
+
+    gt = load_ground_truth(root)
+    data = SessionData(load_session(root))
+    # as detect_session does for the sonar entries (the images are left out here)
+    data.beam_width_deg = session_beam_width(data, [c.id for c in data.session.captures], {})
+    width = data.effective_beam_width_deg
+    errs, refused = [], []
+    for cid, c in gt["captures"].items():
+        if not c.get("target"):
+            continue
+        e = detect_sonar_entry(data, cid)
+        truth = np.asarray(c["center_sonar_m"], float)
+        if e.get("center") is None:
+            refused.append((cid, _why(e.get("reason", "?"))))
+        else:
+            errs.append((np.asarray(e["center"], float) - truth, truth))
+    return errs, refused, width, str(gt["sonar"].get("sensor", "sonar"))
+
+
+def sweep(cache: Path, presets, seeds, scale: float) -> None:
+    """Table 3: every range preset over ``seeds`` as ``sonarcal detect`` runs it."""
+    print(f"\nSweep: range presets, seeds {seeds[0]}-{seeds[-1]}, scale {scale:g}, detected as "
+          f"`sonarcal detect` does (mm; width = the session's estimate, deg)")
+    print(f"{'preset':12} {'sessions':>8} {'found':>9} {'recall':>7} {'bias':>6} {'along':>6} {'RMS':>6} "
+          f"{'max':>6}  width deg      s")
+    total, found_all, notes = 0, 0, []
+    for preset in presets:
+        t0, errs, along, n, widths, why = time.perf_counter(), [], [], 0, [], Counter()
+        for seed in seeds:
+            e, refused, width, sensor = _sweep_one(_sweep_session(cache, preset, seed, scale))
+            n += len(e) + len(refused)
+            widths.append(width)
+            errs += [d for d, _ in e]
+            along += [d @ t / np.linalg.norm(t) for d, t in e]
+            for cid, reason in refused:
+                why[reason] += 1
+                notes.append(f"  {preset} s{seed} {cid} ({sensor}): {reason}")
+        st = _stats(errs, n, along)
+        total, found_all = total + n, found_all + st["found"]
+        print(f"{preset:12} {len(seeds):8d} {st['found']:4d}/{n:<4d} {st['found'] / max(n, 1):7.1%} "
+              f"{st['bias']:6.2f} {st['along']:6.2f} {st['rms']:6.2f} {st['max']:6.2f}  "
+              f"{np.nanmin(widths):.3f}-{np.nanmax(widths):.3f} {time.perf_counter() - t0:6.0f}")
+    print("refused or not found:" if notes else "refused or not found: none")
+    print("\n".join(notes))
+    recall = found_all / max(total, 1)
+    print(f"target recall >= {TARGET_RECALL:.0%}: {recall:.1%} ({found_all}/{total}) -> "
+          f"{'MET' if recall >= TARGET_RECALL else 'MISSED'}")
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", type=int, default=3, help="sessions per preset")
     ap.add_argument("--captures", type=int, default=60, help="single captures per sensor x holder")
     ap.add_argument("--cache", type=Path, default=None, help="folder for generated sessions")
+    ap.add_argument("--sweep", action="store_true", help="only the sweep of every range preset (table 3)")
+    ap.add_argument("--first", type=int, default=41, help="first seed of the sweep")
+    ap.add_argument("--last", type=int, default=60, help="last seed of the sweep")
+    ap.add_argument("--scale", type=float, default=0.5, help="image scale the sweep's sessions are generated at")
+    ap.add_argument("--presets", nargs="+", default=list(SWEEP_PRESETS), help="presets of the sweep")
     args = ap.parse_args(argv)
     cache = args.cache or Path(tempfile.mkdtemp(prefix="bench_range_"))
     cache.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
+    if args.sweep:
+        sweep(cache, args.presets, list(range(args.first, args.last + 1)), args.scale)
+        print(f"\n({time.perf_counter() - t0:.0f} s; load average {os.getloadavg()[0]:.2f}; cache {cache})")
+        return 0
     rows, misses = session_table(cache, args.seeds)
     _print(f"Presets, {args.seeds} session(s) x 8 captures each; beam width estimated per session "
            f"(mm)", rows, misses)

@@ -41,7 +41,8 @@ def detector_version() -> str:
     """sonarcal's version and a digest of the detector package's source files."""
     h = hashlib.sha256()
     here = Path(__file__).resolve().parent
-    for p in sorted((here / "detect").glob("*.py")) + [here / "pipeline.py", here / "disambiguate.py"]:
+    session_level = [here / "pipeline.py", here / "disambiguate.py", here / "disambiguate_sonar.py"]
+    for p in sorted((here / "detect").glob("*.py")) + session_level:
         h.update(p.name.encode())
         h.update(p.read_bytes())
     return f"{__version__}+{h.hexdigest()[:16]}"
@@ -113,5 +114,6 @@ def matches(entry: dict | None, root: Path, paths: list[Path], params: dict, str
 
 
 def _hint(d: dict) -> dict:
-    """A refit hint (sonar-guided second look) is a parameter of that entry, recorded with it."""
-    return {k: d[k] for k in ("hint_uv_px", "hint_radius_px") if k in d}
+    """A refit hint (a sonar-guided second look at an image, a seed chosen among sonar candidates)
+    is a parameter of that entry, recorded with it."""
+    return {k: d[k] for k in ("hint_uv_px", "hint_radius_px", "seed_center_m") if k in d}

@@ -112,12 +112,39 @@ def detect_session(session_or_data, detections: dict, progress: Progress | None 
     for cid, sensor, entry in run_detections(data, todo, progress, workers, beam_ids, beam_dets):
         auto.setdefault(cid, {})[sensor] = _with_fingerprint(data, cid, sensor, entry)
     merged = merge_auto(detections, auto)
+    for cid, entry in _resolve_ambiguous_sonar(data, merged, only=set(auto)).items():
+        auto[cid]["sonar"] = entry
+    merged = merge_auto(detections, auto)
     for cam in data.session.cameras:
         for cid, entry in _resolve_ambiguous_images(data, merged, cam, only=set(auto)).items():
             auto[cid][cam] = entry
     if progress:
         progress(len(todo), len(todo), "done")
     return merge_auto(detections, auto)
+
+
+def _resolve_ambiguous_sonar(data: SessionData, detections: dict, only: set) -> dict:
+    """Second look at the "two candidates" sonar entries (among captures in ``only``): the
+    candidate that the static scenery or the images single out is refitted with the detector
+    seeded there (see :mod:`calib_core.disambiguate_sonar`); kept only when the refit finds the
+    sphere within a radius of it. {capture_id: new sonar entry}."""
+    from calib_core.disambiguate_sonar import choose_sonar_candidates
+
+    ambiguous = [cid for cid in only if (e := detections.get(cid, {}).get("sonar")) and e.get("status") == "auto"
+                 and e.get("center") is None and e.get("two_candidates")]
+    if not ambiguous:
+        return {}
+    r = data.session.sphere_radius_m
+    cams = {name: data.camera(name) for name in data.session.cameras}
+    out = {}
+    for cid, choice in choose_sonar_candidates(detections, cams, r, ambiguous).items():
+        entry = detect_sonar_entry(data, cid, seed_center_m=choice.center_sonar_m)
+        if entry.get("center") is not None and np.linalg.norm(np.asarray(entry["center"]) - choice.center_sonar_m) <= r:
+            seed = [round(float(v), 4) for v in choice.center_sonar_m]
+            entry.update(resolved_by=choice.resolved_by, seed_center_m=seed,
+                         two_candidates=detections[cid]["sonar"]["two_candidates"])
+            out[cid] = _with_fingerprint(data, cid, "sonar", entry, {"seed_center_m": seed})
+    return out
 
 
 def _resolve_ambiguous_images(data: SessionData, detections: dict, cam: str, only: set) -> dict:

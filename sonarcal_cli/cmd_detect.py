@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from calib_core.detect.reasons import entry_note
 from calib_core.errors import SessionError
 from calib_core.detections import load_detections, save_detections
 from calib_core.pipeline import SessionData, detect_session
@@ -53,7 +54,7 @@ def run(args) -> int:
                 missing += 1
             seen = e.get("diameter_m") or e.get("apparent_diameter_m")
             rows.append([cap.id, sensor, e.get("status", ""), _fmt_center(e), f"{e.get('score', 0):.2f}",
-                         f"{seen * 1000:.0f} mm" if seen else "-", e.get("reason", "")])
+                         f"{seen * 1000:.0f} mm" if seen else "-", entry_note(e)])
     console.print(table(f"Detections ({session.name})", ["capture", "sensor", "status", "centre", "score",
                                                          "diameter seen", "reason"], rows))
     diams = [e["diameter_m"] for c in dets.values() for s, e in c.items() if s == "sonar" and e.get("diameter_m")]

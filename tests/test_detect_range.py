@@ -60,6 +60,42 @@ def test_ball_on_a_holder_is_found_without_bias(sensor, holder):
     assert np.linalg.norm(E.mean(axis=0)) < tol / 2
 
 
+@pytest.mark.parametrize("sensor", ["lidar16", "rgbd"])
+def test_a_ball_carried_by_a_person_is_kept(sensor):
+    # a person behind the ball holds it out in one hand (under it) or two (on its sides): the
+    # hands touch and hide part of it, the shoulders and head behind are round too (the ball
+    # must be found, not refused as "two candidates" or "part of a larger surface")
+    errs = []
+    for seed in range(6):
+        P, c, r = range_capture(300 + seed, sensor, "hand")
+        det = detect_sphere_in_cloud(P, r, beam_width_deg=0.0)
+        assert det.found, (sensor, seed, det.reason)
+        errs.append(det.center_sonar_m - c)
+    tol = 0.02 if sensor == "lidar16" else 0.008
+    assert np.linalg.norm(errs, axis=1).max() < tol
+
+
+def test_the_carried_preset_alternates_sensors_and_hides_part_of_the_ball():
+    from calib_core.synth.presets import for_seed, get_preset
+    from calib_core.synth.range_scenes import carried_by_person, solid_ball
+    from calib_core.synth.scene import raycast
+
+    p = get_preset("carried")
+    assert for_seed(p, 0).range_sensor == "rgbd" and for_seed(p, 1).range_sensor == "lidar16"
+    assert for_seed(p, 1).diameter_range[0] >= 0.45 and get_preset("canal") is for_seed(get_preset("canal"), 1)
+    # the hands lie on the ball: rays at the ball from the sensor hit a hand for a few of them
+    c, r, hidden = np.array([2.0, 0.0, 0.0]), 0.2, []
+    for seed in range(6):
+        parts = carried_by_person(np.random.default_rng(seed), c, r, -1.2, np.zeros(3))
+        sc = Scene((solid_ball(c, r, True), *parts))
+        ang = np.linspace(0, 2 * np.pi, 72, endpoint=False)
+        tgt = c + 0.95 * r * np.c_[np.zeros(72), np.cos(ang), np.sin(ang)]
+        d = tgt / np.linalg.norm(tgt, axis=1, keepdims=True)
+        _, hit, _ = raycast(sc, np.zeros(3), d)
+        hidden.append(np.mean(hit != 0))
+    assert 0.0 < np.mean(hidden) < 0.4 and max(hidden) < 0.5
+
+
 def test_beam_width_estimate_goes_to_zero_for_lidar_and_stays_for_sonar():
     r = 0.3
     lidar = [range_capture(s, "lidar16", "chair", radius_m=r)[0] for s in range(4)]
@@ -97,8 +133,13 @@ def test_a_ball_with_almost_no_returns_is_refused_and_the_reason_names_a_range()
     few = np.vstack([far, P[np.linalg.norm(P - c, axis=1) <= 1.2 * r][:8]])
     det = detect_sphere_in_cloud(few, r, beam_width_deg=0.0)
     assert not det.found and det.center_sonar_m is None
-    assert det.reason.startswith("no sphere-like cluster")
-    assert "m away: " in det.reason or det.reason == "no sphere-like cluster"
+    # at 4 m a depth camera's noise (~2 cm) lets the person behind pass for a round thing of
+    # another size: either way the refusal says where, or what size, it saw
+    if det.reason.startswith("only a sphere of another size"):
+        assert "seen " in det.reason and "m across" in det.reason
+    else:
+        assert det.reason.startswith("no sphere-like cluster")
+        assert "m away: " in det.reason or det.reason == "no sphere-like cluster"
 
 
 # ---- a whole session, as the pipeline handles it ------------------------------------------

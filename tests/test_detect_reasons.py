@@ -24,3 +24,13 @@ def test_count_reasons():
     s = count_reasons(["image: no round outline", "image: no round outline",
                        "image: two round objects: (1, 2) and (3, 4)", ""])
     assert s == "image: no round outline: 2, image: two round objects: 1"
+
+
+def test_the_reason_column_says_why_missing_or_how_a_look_alike_was_ruled_out():
+    from calib_core.detect.reasons import entry_note
+
+    assert entry_note({"status": "auto", "reason": "no round outline"}) == "no round outline"
+    settled = {"status": "auto", "center": [1.0, 2.0, 3.0], "resolved_by": "static scenery: the other candidate ..."}
+    assert entry_note(settled) == "chosen by static scenery: the other candidate ..."
+    assert entry_note({"status": "auto", "center": [1.0, 2.0]}) == ""
+    assert entry_note(None) == ""

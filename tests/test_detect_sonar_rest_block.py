@@ -33,3 +33,28 @@ def test_ball_resting_on_a_wide_block_is_found():
     det = detect_sphere_in_cloud(P, r, beam_width_deg=0.001)
     assert det.found, det.reason
     assert np.linalg.norm(det.center_sonar_m - c) < 0.01
+
+
+def test_a_block_under_the_ball_does_not_widen_the_estimated_beam():
+    # sonar scans of a ball resting on a tall block as wide as itself: the block's face under
+    # the ball continues the outline, and under a wide cone its returns would pass for blooming
+    # (the session's estimate rose to ~1.5 deg for a 1 deg beam before the holder's sectors
+    # were left out of the width's cost)
+    from calib_core.detect.sonar_beam import estimate_beam_width_deg
+    from calib_core.synth.range_capture import sensor_config
+    from calib_core.synth.scene import Box, Material, Rect, Scene, Sphere
+    from calib_core.synth.sonar_sim import simulate_scan
+
+    clouds, r = [], 0.1
+    for seed in range(4):
+        rng = np.random.default_rng(seed)
+        c = np.array([rng.uniform(1.2, 2.2), rng.uniform(-0.4, 0.4), rng.uniform(-0.2, 0.2)])
+        half, floor_z = rng.uniform(0.9, 1.4) * r, -1.0
+        top = c[2] - 0.98 * r
+        block = Box((c[0], c[1], (top + floor_z) / 2), (half, half, (top - floor_z) / 2),
+                    material=Material((0.5, 0.5, 0.5), 0.8))
+        scene = Scene((Rect((0, 0, floor_z), (0, 0, 1)), block, Sphere(tuple(c), r, Material((0.6, 0.6, 0.6), 0.9))))
+        clouds.append(simulate_scan(scene, np.eye(4), sensor_config("sonar", rng), rng).points_m)
+    est = estimate_beam_width_deg(clouds, r, nominal_deg=1.0)
+    assert not est.reason and est.n_captures >= 3, est
+    assert 0.7 < est.beam_width_deg < 1.1, est

@@ -187,7 +187,7 @@ def _inside(uv: np.ndarray, outline: np.ndarray) -> bool:
 
 
 def _refine_all(look, todo, hinted: bool):
-    """Refine candidates in order; stop early when what is left cannot matter."""
+    """Refine candidates in order; skip those that cannot change the verdict."""
     fits: list[tuple[Candidate, CandidateFit]] = []
     for c in todo:
         ok = [cf for cf in fits if cf[1].ok]
@@ -195,10 +195,39 @@ def _refine_all(look, todo, hinted: bool):
         if ok and (hinted or (same and c.strength < 0.12 * max(same))):
             break  # found, and what is left is far too weak to be a sphere (an open mesh
             # target has much less contrast than a solid decoy: keep checking those)
-        if ok and _evidence_bound(c) < 0.5 * max(_evidence(f) for _, f in ok):
-            continue  # even at its best this one could not make the found one ambiguous
+        if ok and (_evidence_bound(c) < 0.5 * max(_evidence(f) for _, f in ok)
+                   or _same_outline(c, ok) or _dominated(c, ok)):
+            continue
         fits.append((c, look.refine(c)))
     return fits
+
+
+# a clean, confident outline whose round-outline vote is this many times another candidate's
+# is not made ambiguous by it (see _dominated)
+DOMINANT_VOTE_RATIO = 2.0
+DOMINANT_SCORE = 0.9
+
+
+def _same_outline(c: Candidate, ok) -> bool:
+    """A candidate centred on an accepted credible outline and no larger than it: refining it
+    finds that outline again or texture inside it (either is dropped by :func:`_good_fits`)."""
+    for _, f in ok:
+        if not f.credible:
+            continue
+        r_f = _mean_radius(f.silhouette_px)
+        if np.hypot(*(c.centre_px - f.centre_uv_px)) < 0.5 * r_f and c.radius_px <= 1.3 * r_f:
+            return True
+    return False
+
+
+def _dominated(c: Candidate, ok) -> bool:
+    """A vote candidate whose vote is under 1/DOMINANT_VOTE_RATIO of the vote of a candidate
+    that gave a clean (score >= DOMINANT_SCORE), credible, mostly visible outline: outlines
+    that vote this much less are clutter or a part of the scene, not a second sphere."""
+    if c.source != "votes":
+        return False
+    return any(o.source == "votes" and f.credible and f.score >= DOMINANT_SCORE
+               and c.strength * DOMINANT_VOTE_RATIO < o.strength for o, f in ok)
 
 
 def _evidence_bound(c: Candidate) -> float:
@@ -314,6 +343,7 @@ def _detect_once(image_rgb: np.ndarray, cam: CameraModel, sphere_radius_m: float
     if det.found:
         det.extras["time_ms"] = round(1e3 * (time.perf_counter() - t0), 2)
         det.extras["region_ms"] = round(1e3 * (t_region - t0), 2)
+        det.extras["refined"] = len(fits)  # candidates fitted at full resolution
     return det
 
 

@@ -156,20 +156,38 @@ def refine_candidate(image: np.ndarray, cam: CameraModel, cand: Candidate, spher
     H, W = image.shape[:2]
     R = max(cand.axes_px[0], cand.radius_px)
     # the contrast detector's radius is good to ~30 %, the background blob's to ~10 %
-    lo, hi = (-0.45, 0.8) if cand.source in ("contrast", "hint", "votes") else (-0.45, 0.5)
-    m = int(np.ceil((1.1 + hi) * R + 8))
+    band = (-0.45, 0.8) if cand.source in ("contrast", "hint", "votes") else (-0.45, 0.5)
+    m = int(np.ceil((1.1 + band[1]) * R + 8))
     box = (max(0, int(cand.centre_px[0]) - m), max(0, int(cand.centre_px[1]) - m),
            min(W, int(cand.centre_px[0]) + m + 1), min(H, int(cand.centre_px[1]) + m + 1))
     if box[2] - box[0] < 8 or box[3] - box[1] < 8:
         return CandidateFit(False, "no round outline")
     sig = _Signal(image, background, box)
+    fit1 = _first_pass(cam, sig, cand, R, band, a_range_rad, rng)
+    if not isinstance(fit1, ConeFit):
+        return CandidateFit(False, fit1)
+    # ---- pass 2: along the normals of the fitted silhouette, narrow band (twice when the
+    # first pass-2 fit is still rough: clutter drew pass 1 off the outline)
+    p2 = _pass2(cam, sig, fit1, R, a_range_rad, rng)
+    if p2 is not None and p2[0].sigma_px > clean_rms_px(R):
+        again = _pass2(cam, sig, p2[0], R, a_range_rad, rng)
+        if again is not None and _quality(again[0]) > _quality(p2[0]):
+            p2 = again
+    if p2 is None:
+        return CandidateFit(False, "no round outline")
+    res, outside_bad = _fitted(cam, sig, p2, R, sphere_radius_m)
+    _judge(cam, res, R, outside_bad, sig.diff is not None)
+    return res
 
-    # ---- pass 1: rays from the coarse centre, outermost strong edge
+
+def _first_pass(cam, sig: _Signal, cand: Candidate, R: float, band, a_range_rad, rng) -> ConeFit | str:
+    """Pass 1: rays from the coarse centre, outermost strong edge (or, without a background,
+    the strongest colour edge when that is rounder). The fit, or why there is none."""
     k1 = int(np.clip(2 * np.pi * cand.radius_px / 2.5, 48, 180))
     dirs = ray_directions(k1)
     r_dir = _polar_radius(cand, dirs)
     step = max(0.5, R / 60)
-    t = np.arange(lo * R, hi * R + step, step)
+    t = np.arange(band[0] * R, band[1] * R + step, step)
     pts = cand.centre_px[None, :] + r_dir[:, None] * dirs
     prof = sig.profiles(pts, dirs, t)
     g = gradient_magnitude(prof, step)
@@ -180,7 +198,7 @@ def refine_candidate(image: np.ndarray, cam: CameraModel, cand: Candidate, spher
     t_in = min(t[-1], 0.3 * R) if cand.touches_border else t[-1]
     seg_in = cam.in_image(pts + t_in * dirs) & cam.in_image(pts + t[0] * dirs)
     if seg_in.sum() < 12:
-        return CandidateFit(False, "no outline edges")
+        return "no outline edges"
     fit1 = _pass1(cam, pts, dirs, t, g, seg_in, "outermost", a_range_rad, R, rng)
     good1 = fit1 is not None and fit1.inliers.sum() >= 0.75 * seg_in.sum() and fit1.sigma_px <= 1.0
     if cand.source != "background" and not good1:
@@ -191,23 +209,18 @@ def refine_candidate(image: np.ndarray, cam: CameraModel, cand: Candidate, spher
         if alt is not None and (fit1 is None or _quality(alt) > _quality(fit1)):
             fit1 = alt
     if fit1 is None or fit1.inliers.sum() < 0.4 * seg_in.sum():
-        return CandidateFit(False, "no round outline")
+        return "no round outline"
     if fit1.sigma_px > max(PASS1_MAX_RMS_PX, PASS1_MAX_RMS_FRAC * R):
         # the refinement narrows the band around this outline; it cannot turn an outline this
         # ragged into a round one (saves the cost of pass 2 on clutter)
-        return CandidateFit(False, "no round outline")
+        return "no round outline"
+    return fit1
 
-    # ---- pass 2: along the normals of the fitted silhouette, narrow band (twice when the
-    # first pass-2 fit is still rough: clutter drew pass 1 off the outline)
-    p2 = _pass2(cam, sig, fit1, R, a_range_rad, rng)
-    if p2 is not None and p2[0].sigma_px > clean_rms_px(R):
-        again = _pass2(cam, sig, p2[0], R, a_range_rad, rng)
-        if again is not None and _quality(again[0]) > _quality(p2[0]):
-            p2 = again
-    if p2 is None:
-        return CandidateFit(False, "no round outline")
+
+def _fitted(cam, sig: _Signal, p2, R: float, sphere_radius_m: float) -> tuple[CandidateFit, float]:
+    """The pass-2 fit as a candidate fit (centre, covariance, outline, support, score,
+    contrast, range; extras), not yet judged; and the outline's outside mismatch."""
     fit, ok2, s2, k2 = p2
-
     centre, cov = centre_uv_and_cov(cam, fit)
     # systematic outline deviations (ragged open-mesh envelope, shading, JPEG) do not average
     # out over the edge points; a floor of SYS_FRACTION x the edge RMS per axis matched the
@@ -227,12 +240,19 @@ def refine_candidate(image: np.ndarray, cam: CameraModel, cand: Candidate, spher
     outside_bad = _outside_mismatch(sig, sil_f[visible], outward_normals(sil_f, sil_f.mean(axis=0))[visible], R) \
         if visible.sum() >= 8 else 1.0
     res.extras["outside_mismatch"] = round(outside_bad, 4)
+    res.extras["outline_coverage"] = round(support, 3)
+    return res, outside_bad
+
+
+def _judge(cam, res: CandidateFit, R: float, outside_bad: float, with_background: bool) -> None:
+    """Set ``res.credible``, ``res.ok`` and ``res.reason``: cut by the border, not round,
+    mostly hidden, or inside a larger object."""
+    fit, sil_f, support = res.fit, res.silhouette_px, res.support
     # a clean outline, maybe cut by the border: things inside it are its texture
     # judged at the fitted size (the candidate's coarse size can be well off)
     r_fit = float(np.mean(np.linalg.norm(sil_f - sil_f.mean(axis=0), axis=1)))
     clean = fit.sigma_px <= clean_rms_px(min(R, r_fit))
     res.credible = support >= 0.45 and clean and outside_bad <= 0.2
-    res.extras["outline_coverage"] = round(support, 3)
     if not cam.in_image(sil_f, margin_px=1.0).all():
         res.ok = False
         partial_ok = support >= 0.3 and clean and outside_bad <= 0.25
@@ -241,14 +261,13 @@ def refine_candidate(image: np.ndarray, cam: CameraModel, cand: Candidate, spher
         res.ok, res.reason = False, f"outline not round (edge RMS {fit.sigma_px:.1f} px)"
     elif support < MIN_SUPPORT:
         res.ok, res.reason = False, f"outline {100 * (1 - support):.0f} % hidden or too faint"
-    elif (outside_bad > (0.2 if sig.diff is not None else OUTSIDE_MISMATCH_CLUTTER)
+    elif (outside_bad > (0.2 if with_background else OUTSIDE_MISMATCH_CLUTTER)
           and not (support >= 0.7 and outside_bad <= 0.5
                    and fit.sigma_px <= 0.35 * clean_rms_px(R))):
         # (a mostly visible, very clean round outline is a sphere whatever lies around it: a
         # ball resting on a block, in front of clutter)
         # the object goes on beyond the fitted outline: part of something larger (or cut)
         res.ok, res.reason = False, "round outline inside a larger object"
-    return res
 
 
 def _pass2(cam, sig, fit1: ConeFit, R: float, a_range_rad, rng):

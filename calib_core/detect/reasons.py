@@ -39,6 +39,18 @@ def entry_problem(sensor: str, entry) -> str | None:
     return None
 
 
+def entry_note(entry) -> str:
+    """The reason column of a detection table: why an entry has no centre, or how a found one was
+    singled out among look-alikes ("chosen by static scenery: ..."), else the detector's remark."""
+    if not isinstance(entry, dict):
+        return ""
+    if entry.get("center") is None:
+        return entry.get("reason") or ""
+    if entry.get("resolved_by"):
+        return f"chosen by {entry['resolved_by']}"
+    return entry.get("reason") or ""
+
+
 def residual_problem(sensor: str, residual_px) -> str | None:
     """"k1: detection 389 px from the calibrated reprojection" when it is large, else None."""
     if residual_px is None:

@@ -24,9 +24,13 @@ and pre-screened (:mod:`.sonar_search`); the best few are re-fitted at full reso
 a crop with the cone model and judged (residual scale against the sensor noise measured on the
 planes, coverage of the part of the disc the beams sampled, purity of the returns inside it,
 whether a surface continues its outline over a long arc, diameter). A sphere may rest on or
-hang from something on one side (a seat, a table, a stick, a chain). More than one acceptable
-candidate gives "two candidates" unless one scores CLEAR_WINNER times the other; a sphere of
-another size is reported, not used. Every refusal says why, in words an operator can act on.
+hang from something on one side (a seat, a table, a stick, a chain) or be held in hands. The
+sensor's noise is measured on the planes against range (constant for a sonar or a LiDAR,
+growing with the square of the range for a depth camera) and judged at each candidate's range.
+More than one acceptable candidate gives "two candidates" unless one has CLEAR_WINNER times the
+other's evidence (score x agreement of the size seen with session.yaml's, given how precisely it
+was measured x scatter against the sensor noise: a carried ball beats the shoulders and head of
+the person behind it); a sphere of another size is reported, not used. Every refusal says why, in words an operator can act on.
 The effective beam width (down to 0) is estimated per session with
 :func:`calib_core.detect.sonar_beam.estimate_beam_width_deg`.
 
@@ -40,19 +44,18 @@ solver's chi-square inflation then supplies.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
-from scipy.spatial import cKDTree
-
-from calib_core.detect.sonar_fit import MAD_TO_SIGMA, FitResult, angle_to_axis_rad, cone_residuals, fit_sphere
+from calib_core.detect.sonar_fit import FitResult, angle_to_axis_rad, cone_residuals, fit_sphere
+from calib_core.detect.sonar_outline import attached_sectors, attached_span, free_outline_mask, roughness_m
 from calib_core.detect.sonar_search import (
     Candidate,
     disc_coverage,
     find_candidates,
     crop_ball,
-    polar_about,
+    noise_at,
     start_center,
 )
 from calib_core.detect.types import SonarDetection
@@ -74,6 +77,10 @@ MAX_RING_SECTORS = 10  # of 16 around the outline continued by a surface: a cap 
 # makes it "a sphere of another size" (a decoy, or a wrong diameter): reported, never used,
 # unless an operator picked it (then fitted with the diameter it shows, with a warning)
 DIAMETER_TOL = 0.15
+ROUGH_NOISE = 1.3  # a first look scattered beyond this x the planes' noise (+2 mm) is tried from other starts
+HOLDER_INNER = 0.7  # of the disc's angular radius: returns within it stay in the final fit whatever touches it
+SIZE_GATE = 0.5  # radii from the known-radius sphere: returns further off do not measure its size
+SIZE_SYSTEMATIC = 0.03  # relative: how far off a sensor may see a sphere's size (see _Judged.evidence)
 DIAMETER_WARN = 0.06  # relative: above it a found sphere carries a warning
 CLEAR_WINNER = 3.0  # score ratio above which the best of two same-size candidates is taken
 MODEL_FLOOR_BEAM_FRACTION = 0.02  # 1-sigma model error per axis, as a fraction of range x beam width
@@ -93,49 +100,27 @@ class _Judged:
     score: float
     problem: str  # "" when acceptable
     radius_fit_m: float = float("nan")  # radius of ``fit``: the session's, or the one seen
+    radius_sd_m: float = float("nan")  # standard deviation of radius_cone_m
+    noise_m: float = float("nan")  # the sensor's range noise at the candidate (from the planes)
 
-
-def _roughness_m(ranges_m: np.ndarray, dirs: np.ndarray, k: int = 8) -> float:
-    """Model-free range noise scale (m): robust spread of each range about the median range of
-    its ``k`` angular neighbours (smooth surfaces cancel; about 1.2 x the range noise)."""
-    if len(ranges_m) <= k:
-        return float("nan")
-    _, nb = cKDTree(dirs).query(dirs, k=k + 1)
-    return float(MAD_TO_SIGMA * np.median(np.abs(ranges_m - np.median(ranges_m[nb[:, 1:]], axis=1))))
+    def evidence(self, r: float) -> float:
+        """The score weighed by how well the size seen agrees with ``r`` given how precisely it
+        was measured (plus SIZE_SYSTEMATIC of it: sensors see sizes a few % off), and by how
+        much more the returns scatter about the fit than the sensor's range noise there
+        (``noise_m``, NaN: not known): what tells the ball from a round thing of about its size nearby (a
+        person's shoulders or head, the top of a post)."""
+        e = self.score
+        if np.isfinite(self.radius_cone_m) and np.isfinite(self.radius_sd_m):
+            z = (self.radius_cone_m - r) / np.hypot(self.radius_sd_m, SIZE_SYSTEMATIC * r)
+            e *= float(np.exp(-0.5 * z * z))
+        if np.isfinite(self.noise_m) and self.fit is not None and self.fit.sigma_m > 0:
+            e *= min(1.0, ((self.noise_m + 0.001) / self.fit.sigma_m) ** 2)
+        return e
 
 
 def _max_sigma(radius: float, noise_m: float) -> float:
     """Largest residual scale (m) a sphere of ``radius`` may show (see MAX_SIGMA_REL)."""
     return max(MAX_SIGMA_REL * radius, 2.0 * noise_m + 0.002 if np.isfinite(noise_m) else 0.0)
-
-
-def _attached_span(R, D, c, radius: float, alpha: float, h: float, noise_m: float) -> int:
-    """Over how many of 16 directions around the sphere's outline (one contiguous arc, the
-    shortest that holds them all) something continues it: returns just outside the outline
-    at or in front of the limb's range. A real sphere's outline is a depth step: what lies
-    behind it (a chair's back, a wall, a person) does not count; what holds it (a seat, a
-    table, a stick, a stand) touches it along one arc. A cap of a larger surface (a boulder,
-    a dome) is continued all round, a pile or a pipe on opposite sides: a long arc."""
-    cn = float(np.linalg.norm(c))
-    limb = float(np.sqrt(max(cn * cn - radius * radius, 0.0)))
-    tol = max(0.3 * radius, 4.0 * noise_m if np.isfinite(noise_m) else 0.0)
-    theta, ang = polar_about(D, c / cn)
-    sel = (theta > alpha * 1.05) & (theta <= alpha * 1.05 + max(0.5 * alpha, 2 * h))
-    sector = (ang[sel] / (2 * np.pi) * 16).astype(int) % 16
-    front = R[sel] < limb + tol
-    n_all = np.bincount(sector, minlength=16)
-    n_front = np.bincount(sector[front], minlength=16)
-    # a sector is attached when most of its returns continue the limb (flying pixels between
-    # a ball's edge and the background are a minority)
-    att = (n_front >= 2) & (n_front >= 0.5 * n_all)
-    if not att.any():
-        return 0
-    free = np.r_[~att, ~att]
-    gap, run = 0, 0
-    for f in free:  # longest circular run of free sectors
-        run = run + 1 if f else 0
-        gap = max(gap, min(run, 16))
-    return 16 - gap
 
 
 def _assess(X, R, D, fit: FitResult, radius: float, h: float, seeded: bool, noise_m: float):
@@ -154,8 +139,8 @@ def _assess(X, R, D, fit: FitResult, radius: float, h: float, seeded: bool, nois
     sampled = disc_coverage(D[in_disc], c / cn, alpha)
     coverage = disc_coverage(D[inl], c / cn, alpha) / max(sampled, 1.0 / 12)
     sig = fit.sigma_m
-    rough = _roughness_m(R[in_disc], D[in_disc])
-    ring = _attached_span(R, D, c, radius, alpha, h, noise_m)
+    rough = roughness_m(R[in_disc], D[in_disc])
+    ring = attached_span(attached_sectors(R, D, c, radius, alpha, h, noise_m))
     problem = ""
     if n_in < MIN_INLIERS:
         problem = f"too few returns on the sphere ({n_in})"
@@ -214,10 +199,15 @@ def _crop(P: np.ndarray, cand: Candidate, r: float, h: float):
 
 def _size_seen(X, D, fit: FitResult, r: float, h: float) -> tuple[float, float]:
     """(radius, its standard deviation) the cone model supports: free radius, robustly, on the
-    returns inside the disc of the known-radius fit (its chain, stick or stand lies outside).
-    NaNs if no fit."""
+    returns inside the disc of the known-radius fit (its chain, stick or stand lies outside)
+    that lie within SIZE_GATE radii of its surface (a block, a hand or a seat edge in front of
+    part of the ball is not), NaNs if no fit."""
     cn = float(np.linalg.norm(fit.center_m))
     disc = angle_to_axis_rad(D, fit.center_m / cn) <= 1.05 * (np.arcsin(r / cn) + h)
+    ra, _ = cone_residuals(fit.center_m, r, np.linalg.norm(X, axis=1), D, h)
+    near = disc & (np.abs(ra) <= SIZE_GATE * r)
+    if near.sum() >= MIN_INLIERS:
+        disc = near
     fine = fit_sphere(X[disc], fit.center_m, r, model="cone", free_radius=True,
                       half_angle_rad=h, sigma0_m=max(fit.sigma_m, 1e-3))
     if not fine.ok:
@@ -275,7 +265,8 @@ def _judge(P: np.ndarray, cand: Candidate, r: float, h: float, seeded: bool,
                             and (r_fit != r or abs(r_cone - r) <= tol)):
         problem = size_problem(r_cone, r)
     return _Judged(cand, idx, idx_j, fit, float(r_cone), coverage, purity,
-                   _score(coverage, purity, r_cone, r, fit.sigma_m), problem, r_fit)
+                   _score(coverage, purity, r_cone, r, fit.sigma_m), problem, r_fit,
+                   float(sd) if r_fit == r else float("nan"), noise_m)
 
 
 def _first_look(X, start, r, h, noise_m, bad: _Judged) -> _FirstLook | None:
@@ -287,7 +278,7 @@ def _first_look(X, start, r, h, noise_m, bad: _Judged) -> _FirstLook | None:
     quick = fit_sphere(Xq, start, r, model="cone", half_angle_rad=h, sigma0_m=0.01, n_rounds=2)
     look = _FirstLook(Xq, quick, r, h, noise_m)
     # scattered beyond the sensor noise: perhaps a basin that takes in what holds the ball
-    rough = np.isfinite(noise_m) and quick.ok and quick.sigma_m > 2.0 * noise_m + 0.002
+    rough = np.isfinite(noise_m) and quick.ok and quick.sigma_m > ROUGH_NOISE * noise_m + 0.002
     if rough or _hopeless(look, start):
         look = _FirstLook(Xq, _restart(Xq, start, r, h, quick), r, h, noise_m)
     bad.fit = look.quick
@@ -326,20 +317,25 @@ def _restart(Xq, start, r, h, quick: FitResult) -> FitResult:
         c = cost(f)
         if c < best_cost:
             best, best_cost = f, c
-    return best
+    if best is quick:
+        return quick
+    # the starts ran one robust round each: the winner gets the trimmed round too
+    fine = fit_sphere(Xq, best.center_m, r, model="cone", half_angle_rad=h, sigma0_m=0.01, n_rounds=2)
+    return fine if cost(fine) <= best_cost else best
 
 
 def _restarts(Xq, R, D, start, r, h):
-    """First looks from six starts a quarter radius off the coarse centre, then one on only
-    the returns inside the start's disc (a block or seat the ball rests on, seen below or
-    beside it, can outnumber the ball's returns in the crop and drag every fit into it)."""
+    """First looks (one robust round each) from six starts a quarter radius off the coarse
+    centre, then one on only the returns inside the start's disc (a block or seat the ball
+    rests on, seen below or beside it, can outnumber the ball's returns in the crop and drag
+    every fit into it)."""
     for step in np.vstack([np.eye(3), -np.eye(3)]) * 0.25 * r:
-        yield fit_sphere(Xq, start + step, r, model="cone", half_angle_rad=h, sigma0_m=0.01, n_rounds=2)
+        yield fit_sphere(Xq, start + step, r, model="cone", half_angle_rad=h, sigma0_m=0.01, n_rounds=1)
     sn = float(np.linalg.norm(start))
     disc = angle_to_axis_rad(D, start / sn) <= np.arcsin(min(r / sn, 1.0)) + h
     if disc.sum() >= MIN_INLIERS:
         yield fit_sphere(Xq[disc], start, r, model="cone", half_angle_rad=h, sigma0_m=0.01,
-                         n_rounds=2, loss="cauchy")
+                         n_rounds=1, loss="cauchy")
 
 
 def _as_other_size(X, R, D, look: _FirstLook, fit: FitResult, r, h, seeded, noise_m):
@@ -403,18 +399,12 @@ def detect_sphere_in_cloud(points_sonar_m: np.ndarray, sphere_radius_m: float,
         return _not_found("empty cloud", method, n_points=0)
     if n_all < MIN_POINTS:
         return _not_found(f"too few points ({n_all} < {MIN_POINTS})", method, n_points=n_all)
-    rng = np.random.default_rng(rng_seed)
-    base = None  # indices of the working cloud in the input (None: all of it)
-    seed = None
-    if seed_center_m is not None:
-        seed = np.asarray(seed_center_m, float).reshape(3)
-        reach = float(seed_radius_m) + 2.0 * r + float(np.linalg.norm(seed)) * np.tan(h) + 0.05
-        base = crop_ball(P, seed, reach)
-        if len(base) < MIN_POINTS:
-            return _not_found(f"too few points near the picked point ({len(base)})", method,
-                              n_points=n_all)
+    seed = None if seed_center_m is None else np.asarray(seed_center_m, float).reshape(3)
+    base = None if seed is None else _near_pick(P, seed, seed_radius_m, r, h)
+    if base is not None and len(base) < MIN_POINTS:
+        return _not_found(f"too few points near the picked point ({len(base)})", method, n_points=n_all)
     W = P if base is None else P[base]
-    cands, info = find_candidates(W, r, h, rng, max_candidates=MAX_JUDGED)
+    cands, info = find_candidates(W, r, h, np.random.default_rng(rng_seed), max_candidates=MAX_JUDGED)
     if not cands:
         return _not_found("no sphere-like cluster", method, n_points=n_all,
                           n_clusters=int(info.get("n_clusters", 0)))
@@ -423,40 +413,71 @@ def detect_sphere_in_cloud(points_sonar_m: np.ndarray, sphere_radius_m: float,
         cands = [k for k in cands if np.linalg.norm(k.center_m - seed) < seed_radius_m + 2 * r]
         if not cands:
             return _not_found("nothing sphere-like near the picked point", method, n_points=n_all)
-    judged = [_judge(W, k, r, h, seed is not None, info["noise_m"]) for k in cands[:MAX_FULL]]
-    good = [j for j in judged if not j.problem]
-    good = _dedupe(good, r)
+    # the sensor's noise where each candidate is (a depth camera's grows with range)
+    judged = [_judge(W, k, r, h, seed is not None, _noise_near(info, k.center_m)) for k in cands[:MAX_FULL]]
+    chosen, extras = _choose(judged, r, seed)
+    if chosen is None:
+        reason = extras.pop("reason")
+        return _not_found(reason, method, n_points=n_all, **extras)
+    return _finish(P, W, base, chosen, r, h, method, n_all, info, extras)
+
+
+def _near_pick(P, seed, seed_radius_m: float, r: float, h: float) -> np.ndarray:
+    """Indices of the points a sphere near an operator's pick can reach."""
+    reach = float(seed_radius_m) + 2.0 * r + float(np.linalg.norm(seed)) * np.tan(h) + 0.05
+    return crop_ball(P, seed, reach)
+
+
+def _noise_near(info: dict, center_m) -> float:
+    """The range noise the cloud's planes show at the candidate's range, never below the
+    planes' overall noise (NaN without planes)."""
+    at = noise_at(info["noise_model"], float(np.linalg.norm(center_m)))
+    return float(np.nanmax([at, info["noise_m"]])) if np.isfinite(info["noise_m"]) else float("nan")
+
+
+def _choose(judged: list[_Judged], r: float, seed) -> tuple[_Judged | None, dict]:
+    """The candidate to use and the detection's extras, or (None, extras with a ``reason``):
+    the operator's pick decides when there is one; else one candidate of the session's size
+    (a second one is tolerated when the first has CLEAR_WINNER times its evidence)."""
+    good = _dedupe([j for j in judged if not j.problem], r)
     if not good:
         best = max(judged, key=lambda j: j.score)
         why = best.problem or "no sphere-like cluster"
         at = float(np.linalg.norm(best.cand.center_m))
-        return _not_found(f"no sphere-like cluster (best candidate, {at:.2f} m away: {why})",
-                          method, n_points=n_all, n_candidates=len(judged))
-    extras: dict = {}
-    nominal = [j for j in good if j.radius_fit_m == r]
+        return None, {"reason": f"no sphere-like cluster (best candidate, {at:.2f} m away: {why})",
+                      "n_candidates": len(judged)}
+    nominal = sorted((j for j in good if j.radius_fit_m == r), key=lambda j: -j.evidence(r))
     other = [j for j in good if j.radius_fit_m != r]
     if seed is not None:  # the operator's pick decides, whatever its size
-        chosen = min(good, key=lambda j: np.linalg.norm(j.fit.center_m - seed))
-    elif len(nominal) > 1 and nominal[0].score < CLEAR_WINNER * nominal[1].score:
+        return min(good, key=lambda j: np.linalg.norm(j.fit.center_m - seed)), {}
+    if len(nominal) > 1 and nominal[0].evidence(r) < CLEAR_WINNER * nominal[1].evidence(r):
         at = " and ".join(f"{np.linalg.norm(k.fit.center_m):.2f} m" for k in nominal[:3])
         pos = "; ".join(str(np.round(k.fit.center_m, 3).tolist()) for k in nominal[:3])
-        return _not_found(f"two candidates: round objects of the sphere's size at {at} "
-                          f"(centres {pos} m)", method, n_points=n_all, n_candidates=len(good))
-    elif not nominal:  # sphere-like, but not of session.yaml's size: a decoy or a wrong diameter
+        return None, {"reason": f"two candidates: round objects of the sphere's size at {at} "
+                                f"(centres {pos} m)", "n_candidates": len(good),
+                      "two_candidates": _centres(nominal)}
+    if not nominal:  # sphere-like, but not of session.yaml's size: a decoy or a wrong diameter
         k = max(other, key=lambda j: j.score)
-        return _not_found(
-            f"only a sphere of another size: seen {2 * k.radius_cone_m:.3f} m across, session.yaml "
-            f"says {2 * r:.3f} m (check the diameter, or pick the sphere by hand)", method,
-            n_points=n_all, candidate_center=[round(float(v), 4) for v in k.fit.center_m],
-            candidate_diameter_m=round(2 * k.radius_cone_m, 3))
-    else:
-        chosen = nominal[0]
-        if len(nominal) > 1:  # a clear winner: say what else was seen
-            extras["warning"] = (f"another round object at {np.linalg.norm(nominal[1].fit.center_m):.2f} m "
-                                 f"scored {nominal[1].score:.2f} against {chosen.score:.2f}")
-        if other:
-            extras["ignored_other_sizes_m"] = [round(2 * k.radius_cone_m, 4) for k in other]
-    return _finish(P, W, base, chosen, r, h, method, n_all, info, extras)
+        return None, {"reason": f"only a sphere of another size: seen {2 * k.radius_cone_m:.3f} m across, "
+                                f"session.yaml says {2 * r:.3f} m (check the diameter, or pick the sphere by hand)",
+                      "candidate_center": [round(float(v), 4) for v in k.fit.center_m],
+                      "candidate_diameter_m": round(2 * k.radius_cone_m, 3)}
+    chosen, extras = nominal[0], {}
+    if len(nominal) > 1:  # a clear winner: say what else was seen
+        k = nominal[1]
+        seen = f", seen {2 * k.radius_cone_m:.2f} m across" if np.isfinite(k.radius_cone_m) else ""
+        extras["warning"] = (f"another round object at {np.linalg.norm(k.fit.center_m):.2f} m{seen} "
+                             f"scored {k.score:.2f} against {chosen.score:.2f}")
+        extras["other_candidates"] = _centres(nominal[1:])
+    if other:
+        extras["ignored_other_sizes_m"] = [round(2 * k.radius_cone_m, 4) for k in other]
+    return chosen, extras
+
+
+def _centres(judged: list[_Judged]) -> list[list[float]]:
+    """Candidates' fitted centres (m, sonar frame) as an entry records them (for the
+    session-level choice, :mod:`calib_core.disambiguate_sonar`)."""
+    return [[round(float(v), 4) for v in j.fit.center_m] for j in judged]
 
 
 def _dedupe(judged: list[_Judged], r: float) -> list[_Judged]:
@@ -469,28 +490,10 @@ def _dedupe(judged: list[_Judged], r: float) -> list[_Judged]:
 
 def _finish(P, W, base, j: _Judged, r, h, method, n_all, info, extras) -> SonarDetection:
     """Method-specific final fit on the chosen candidate's crop; assemble the detection."""
-    X = W[j.idx]
-    Xj = X[j.idx_j]
-    cone = j.fit
-    other_size = j.radius_fit_m != r
-    if len(Xj) < len(X):  # refine on every point of the crop
-        cone = fit_sphere(X, cone.center_m, j.radius_fit_m, model="cone", half_angle_rad=h,
-                          free_radius=other_size, sigma0_m=cone.sigma_m, n_rounds=3, warm=True)
-        if not cone.ok:
-            return _not_found("sphere fit did not converge", method, n_points=n_all)
-    apparent = fit_sphere(Xj, cone.center_m, r, model="euclid", free_radius=True,
-                          sigma0_m=max(cone.sigma_m, 2e-3))
-    if method == "cone-model":
-        fit = cone
-    elif method == "known-radius":
-        fit = fit_sphere(X, cone.center_m, r, model="euclid", sigma0_m=max(cone.sigma_m, 2e-3))
-    elif len(Xj) == len(X):
-        fit = apparent
-    else:
-        fit = fit_sphere(X, apparent.center_m, apparent.radius_m, model="euclid",
-                         free_radius=True, sigma0_m=apparent.sigma_m, n_rounds=2, warm=True)
-    if not fit.ok:
+    fits = _final_fits(W[j.idx], j, r, h, method, j.noise_m)
+    if fits is None:
         return _not_found("sphere fit did not converge", method, n_points=n_all)
+    fit, cone, apparent = fits
     mask = np.zeros(n_all, bool)
     sel = j.idx[fit.inliers]
     mask[sel if base is None else base[sel]] = True
@@ -503,16 +506,7 @@ def _finish(P, W, base, j: _Judged, r, h, method, n_all, info, extras) -> SonarD
         "planes_removed": int(info.get("planes_removed", 0)),
         "plane_noise_m": round(float(info["noise_m"]), 5) if np.isfinite(info["noise_m"]) else None,
     })
-    size_note = ""
-    seen = f"sphere seen {2 * j.radius_cone_m:.3f} m across, session.yaml says {2 * r:.3f} m"
-    if other_size:
-        size_note = seen
-    elif np.isfinite(j.radius_cone_m) and abs(j.radius_cone_m - r) > DIAMETER_WARN * r:
-        size_note = seen + ": check the diameter or the beam width (sonar_beam.estimate_beam_width_deg)"
-    if size_note:
-        extras["warning"] = "; ".join(w for w in (extras.get("warning"), size_note) if w)
-    if other_size and method == "cone-model":
-        extras["fitted_with_diameter_m"] = round(2 * cone.radius_m, 4)
+    _size_notes(extras, j, r, cone, method)
     return SonarDetection(
         found=True,
         center_sonar_m=np.asarray(fit.center_m, float),
@@ -527,3 +521,65 @@ def _finish(P, W, base, j: _Judged, r, h, method, n_all, info, extras) -> SonarD
         inlier_mask=mask,
         extras=extras,
     )
+
+
+def _away_from_holder(X, fit: FitResult, radius: float, h: float, noise_m: float,
+                      free_radius: bool) -> FitResult:
+    """The cone fit again without the returns near the outline in the sectors where something
+    continues it over two sectors or more (a seat or a table under the ball, a hand; a thin
+    chain or stick touches one and its returns are rejected anyway): a sparse scan's ring
+    through a seat's edge, next to the ball's limb, drags the centre towards it (13-25 mm on
+    a 16-ring LiDAR). The inner part of the disc (HOLDER_INNER of its angular radius) stays.
+    Inliers are given over all of ``X``; the fit is kept when nothing touches the outline."""
+    keep = free_outline_mask(X, fit.center_m, radius, h, noise_m, inner=HOLDER_INNER, min_attached=2)
+    if keep is None or keep.all() or keep.sum() < 3 * MIN_INLIERS:
+        return fit
+    f = fit_sphere(X[keep], fit.center_m, radius, model="cone", half_angle_rad=h, free_radius=free_radius,
+                   sigma0_m=max(fit.sigma_m, 1e-3), n_rounds=3, warm=True)
+    if not f.ok:
+        return fit
+    inl = np.zeros(len(X), bool)
+    inl[keep] = f.inliers
+    return replace(f, inliers=inl)
+
+
+def _final_fits(X, j: _Judged, r, h, method, noise_m: float = float("nan")):
+    """(the method's fit, the cone-model fit, the free-radius Euclidean fit) on the crop ``X``
+    of the chosen candidate, or None when a fit the method needs fails."""
+    Xj = X[j.idx_j]
+    cone = j.fit
+    other_size = j.radius_fit_m != r
+    if len(Xj) < len(X):  # refine on every point of the crop
+        cone = fit_sphere(X, cone.center_m, j.radius_fit_m, model="cone", half_angle_rad=h,
+                          free_radius=other_size, sigma0_m=cone.sigma_m, n_rounds=3, warm=True)
+        if not cone.ok:
+            return None
+    if method == "cone-model":
+        cone = _away_from_holder(X, cone, j.radius_fit_m, h, noise_m, other_size)
+    apparent = fit_sphere(Xj, cone.center_m, r, model="euclid", free_radius=True,
+                          sigma0_m=max(cone.sigma_m, 2e-3))
+    if method == "cone-model":
+        fit = cone
+    elif method == "known-radius":
+        fit = fit_sphere(X, cone.center_m, r, model="euclid", sigma0_m=max(cone.sigma_m, 2e-3))
+    elif len(Xj) == len(X):
+        fit = apparent
+    else:
+        fit = fit_sphere(X, apparent.center_m, apparent.radius_m, model="euclid",
+                         free_radius=True, sigma0_m=apparent.sigma_m, n_rounds=2, warm=True)
+    return (fit, cone, apparent) if fit.ok else None
+
+
+def _size_notes(extras: dict, j: _Judged, r: float, cone: FitResult, method: str) -> None:
+    """Warn (in ``extras``) when the sphere was seen with another size than session.yaml's."""
+    other_size = j.radius_fit_m != r
+    seen = f"sphere seen {2 * j.radius_cone_m:.3f} m across, session.yaml says {2 * r:.3f} m"
+    size_note = ""
+    if other_size:
+        size_note = seen
+    elif np.isfinite(j.radius_cone_m) and abs(j.radius_cone_m - r) > DIAMETER_WARN * r:
+        size_note = seen + ": check the diameter or the beam width (sonar_beam.estimate_beam_width_deg)"
+    if size_note:
+        extras["warning"] = "; ".join(w for w in (extras.get("warning"), size_note) if w)
+    if other_size and method == "cone-model":
+        extras["fitted_with_diameter_m"] = round(2 * cone.radius_m, 4)

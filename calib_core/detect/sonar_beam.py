@@ -21,6 +21,7 @@ import numpy as np
 
 from calib_core.detect.sonar import detect_sphere_in_cloud
 from calib_core.detect.sonar_fit import cone_residuals, fit_sphere
+from calib_core.detect.sonar_outline import free_outline_mask
 from calib_core.detect.sonar_search import crop_ball
 
 MIN_CAPTURES = 3
@@ -92,6 +93,12 @@ def beam_crop(cloud_sonar_m, sphere_radius_m: float, nominal_deg: float = 1.0, c
         c, sig = det.center_sonar_m, det.extras.get("sigma_range_m", 0.005)
     c = np.asarray(c, float)
     X = P[crop_ball(P, c, 1.6 * r + np.linalg.norm(c) * np.tan(h0) + 0.05)]
+    # what holds the ball (a block, a seat, a stick) continues the outline on one side; under a
+    # wide cone its returns pass for blooming: only the free part of the outline is used
+    free = free_outline_mask(X, c, r, h0 * max(DEFAULT_FACTORS))
+    if free is None:
+        return None
+    X = X[free]
     return (X, c, float(sig)) if len(X) >= 12 else None
 
 

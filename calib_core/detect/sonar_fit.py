@@ -183,28 +183,43 @@ def fit_sphere(points_m: np.ndarray, center0_m, radius_m: float, model: str = "c
         return FitResult(x0[:3], float(radius_m), np.full((3, 3), np.nan), np.nan,
                          np.zeros(n, bool), np.nan, False)
     f_all, j_all = _resid_fn(model, P, R, D, half_angle_rad, radius_m)
-    x = x0
-    sigma = float(sigma0_m)
-    inl = np.ones(n, bool)
-    ok = True
-    first = 0
-    if warm:
-        ra, rb = _split(model, f_all(x), n)
-        inl = (np.abs(ra) <= 3 * sigma) & (rb <= OUTSIDE_SIGMAS * sigma)
+    sub = _Subset(model, P, R, D, half_angle_rad, radius_m, j_all)
+    inl, first = np.ones(n, bool), 0
+    if warm:  # the points within 3 sigma of the start are the first inliers
+        ra, rb = _split(model, f_all(x0), n)
+        inl = (np.abs(ra) <= 3 * sigma0_m) & (rb <= OUTSIDE_SIGMAS * sigma0_m)
         first = 1
         if inl.sum() < npar + 2:
-            inl = np.ones(n, bool)
-            first = 0
-    for k in range(first, n_rounds):
+            inl, first = np.ones(n, bool), 0
+    x, sigma, inl, ok = _rounds(f_all, sub, x0, float(sigma0_m), inl, range(first, n_rounds), loss, n)
+    return _result(f_all, sub, x, sigma, inl, ok, model, free_radius, radius_m, n)
+
+
+class _Subset:
+    """Residual functions of the fit restricted to a mask of the points."""
+
+    def __init__(self, model, P, R, D, h, radius_m, j_all):
+        self.args = (model, P, R, D, h, radius_m)
+        self.j_all = j_all  # the Jacobian function over every point
+
+    def __call__(self, mask):
+        model, P, R, D, h, radius_m = self.args
+        return _resid_fn(model, P[mask], R[mask], D[mask], h, radius_m)
+
+
+def _rounds(f_all, sub: _Subset, x, sigma: float, inl, rounds, loss: str, n: int):
+    """The fit's rounds (see fit_sphere): (x, sigma, inliers, ok)."""
+    model = sub.args[0]
+    npar = len(x)
+    for k in rounds:
         if k == 0:
-            sol = least_squares(f_all, x, jac=j_all, loss=loss, f_scale=sigma,
+            sol = least_squares(f_all, x, jac=sub.j_all, loss=loss, f_scale=sigma,
                                 x_scale=0.05, xtol=1e-6, ftol=1e-6, max_nfev=20)
         else:
-            fs, js = _resid_fn(model, P[inl], R[inl], D[inl], half_angle_rad, radius_m)
+            fs, js = sub(inl)
             sol = least_squares(fs, x, jac=js, x_scale=0.05, xtol=1e-6, ftol=1e-6, max_nfev=12)
         if not np.all(np.isfinite(sol.x)):
-            ok = False
-            break
+            return x, sigma, inl, False
         x = sol.x
         ra, rb = _split(model, f_all(x), n)
         core = rb == 0.0
@@ -213,18 +228,23 @@ def fit_sphere(points_m: np.ndarray, center0_m, radius_m: float, model: str = "c
         thr = max(3.0 * sigma, 1e-3)
         new = (np.abs(ra) <= thr) & (rb <= max(OUTSIDE_SIGMAS * sigma, 1e-3))
         if new.sum() < npar + 2:
-            ok = False
-            break
+            return x, sigma, inl, False
         if k > 0 and np.array_equal(new, inl):
             break
         inl = new
+    return x, sigma, inl, True
+
+
+def _result(f_all, sub: _Subset, x, sigma, inl, ok, model, free_radius, radius_m, n) -> FitResult:
+    """The FitResult of parameters ``x``: inlier RMS, covariance ``sigma^2 (J^T J)^-1``."""
+    npar = len(x)
     ra, rb = _split(model, f_all(x), n)
     r_in = np.concatenate([ra[inl], rb[inl]]) if model == "cone" else ra[inl]
     m = int(inl.sum())
     rms = float(np.sqrt(np.mean(ra[inl] ** 2 + rb[inl] ** 2))) if m else np.nan
     cov = np.full((npar, npar), np.nan)
     if m >= npar + 2:
-        J = _resid_fn(model, P[inl], R[inl], D[inl], half_angle_rad, radius_m)[1](x)
+        J = sub(inl)[1](x)
         s2 = float(np.sum(r_in**2)) / max(m - npar, 1)
         try:
             cov = s2 * np.linalg.inv(J.T @ J)

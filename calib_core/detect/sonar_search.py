@@ -95,38 +95,21 @@ def remove_planes(Q: np.ndarray, min_extent_m: float, thr_m: float, rng: np.rand
     keep = np.ones(len(Q), bool)
     tried = np.zeros(len(Q), bool)  # inliers of a plane that failed the checks: not sampled again
     planes = []
-    Qk = Q
     for _ in range(max_planes + MAX_FAILED_PLANES):
         if len(planes) >= max_planes:
             break
         idx = np.nonzero(keep & ~tried)[0]
-        Qk = Q[idx]
         if len(idx) < max(min_count, 10):
             break
-        S = Qk if len(idx) <= 2000 else Qk[rng.integers(0, len(idx), 2000)]
-        # half the triples anywhere, half among an anchor's 48 nearest (likelier coplanar)
-        k = min(48, len(S))
-        _, nb = cKDTree(S).query(S[rng.integers(0, len(S), n_hyp // 2)], k=k)
-        loc = np.take_along_axis(nb, np.c_[np.zeros(n_hyp // 2, int),
-                                           rng.integers(1, k, (n_hyp // 2, 2))], axis=1)
-        tri = S[np.vstack([rng.integers(0, len(S), (n_hyp - n_hyp // 2, 3)), loc])]
-        n, d, good = _plane_from_3(tri)
-        cnt = (np.abs(S @ n.T - d) < thr_m).sum(axis=0) * good
-        b = int(np.argmax(cnt))
-        if cnt[b] < max(min_count * len(S) / len(idx), min_frac * len(S)):
+        Qk = Q[idx]
+        hyp = _plane_hypothesis(Qk, thr_m, rng, n_hyp, max(min_count * min(len(idx), 2000) / len(idx),
+                                                             min_frac * min(len(idx), 2000)))
+        if hyp is None:
             break
-        nrm, off = n[b], d[b]
-        for _refit in range(2):  # PCA refit on the inliers
-            X = Qk[np.abs(Qk @ nrm - off) < thr_m]
-            if len(X) < 3:
-                break
-            mu = X.mean(axis=0)
-            Xc = X - mu
-            ev, evec = np.linalg.eigh(Xc.T @ Xc / len(X))  # ascending: normal first
-            nrm, off = evec[:, 0], float(mu @ evec[:, 0])
+        nrm, off, ev, evec = _refit_plane(Qk, *hyp, thr_m)
         dist = np.abs(Qk @ nrm - off)
-        sd = 1.4826 * float(np.median(dist[dist < thr_m])) if (dist < thr_m).any() else thr_m
         on = dist < thr_m
+        sd = 1.4826 * float(np.median(dist[on])) if on.any() else thr_m
         inl = idx[on]
         spread = 4.0 * np.sqrt(np.maximum(ev[[2, 1]], 0.0))
         density = len(inl) * thr_m * thr_m / max(spread[0] * spread[1], 1e-12)
@@ -140,6 +123,38 @@ def remove_planes(Q: np.ndarray, min_extent_m: float, thr_m: float, rng: np.rand
         keep[inl] = False
         planes.append((nrm, off, int(len(inl))))
     return keep, planes
+
+
+def _plane_hypothesis(Qk: np.ndarray, thr_m: float, rng: np.random.Generator, n_hyp: int,
+                      min_support: float):
+    """(normal, offset) of the best of ``n_hyp`` planes through random triples of (at most 2000
+    of) the voxels ``Qk``, half anywhere, half among an anchor's 48 nearest (likelier coplanar);
+    None when the best holds fewer than ``min_support`` of the sampled voxels within ``thr_m``."""
+    S = Qk if len(Qk) <= 2000 else Qk[rng.integers(0, len(Qk), 2000)]
+    k = min(48, len(S))
+    _, nb = cKDTree(S).query(S[rng.integers(0, len(S), n_hyp // 2)], k=k)
+    loc = np.take_along_axis(nb, np.c_[np.zeros(n_hyp // 2, int),
+                                       rng.integers(1, k, (n_hyp // 2, 2))], axis=1)
+    tri = S[np.vstack([rng.integers(0, len(S), (n_hyp - n_hyp // 2, 3)), loc])]
+    n, d, good = _plane_from_3(tri)
+    cnt = (np.abs(S @ n.T - d) < thr_m).sum(axis=0) * good
+    b = int(np.argmax(cnt))
+    return None if cnt[b] < min_support else (n[b], d[b])
+
+
+def _refit_plane(Qk: np.ndarray, nrm, off, thr_m: float):
+    """(normal, offset, eigenvalues ascending, eigenvectors) after two PCA refits on the voxels
+    within ``thr_m`` of the plane."""
+    ev, evec = np.zeros(3), np.eye(3)
+    for _refit in range(2):
+        X = Qk[np.abs(Qk @ nrm - off) < thr_m]
+        if len(X) < 3:
+            break
+        mu = X.mean(axis=0)
+        Xc = X - mu
+        ev, evec = np.linalg.eigh(Xc.T @ Xc / len(X))  # ascending: normal first
+        nrm, off = evec[:, 0], float(mu @ evec[:, 0])
+    return nrm, off, ev, evec
 
 
 def _plane_pieces(Q: np.ndarray, inl: np.ndarray, axes: np.ndarray, thr_m: float,
@@ -172,24 +187,64 @@ def _plane_pieces(Q: np.ndarray, inl: np.ndarray, axes: np.ndarray, thr_m: float
 
 def plane_range_noise_m(points_m: np.ndarray, planes: list, thr_m: float,
                         rng: np.random.Generator, max_points: int = 20_000) -> float:
-    """Range noise scale (m) of the sonar, from the points on the removed planes: the robust
+    """Range noise scale (m) of the sensor, from the points on the removed planes: the robust
     spread of their distance to the plane converted to range (divided by the cosine of the
     incidence). NaN without planes. A rough (non-flat) seabed makes it larger, never smaller."""
+    return plane_noise(points_m, planes, thr_m, rng, max_points)[0]
+
+
+def plane_noise(points_m: np.ndarray, planes: list, thr_m: float, rng: np.random.Generator,
+                max_points: int = 20_000) -> tuple[float, tuple[float, float]]:
+    """(range noise (m) as :func:`plane_range_noise_m`, and (a, b) of the noise against range
+    ``sigma(R) = sqrt(a^2 + (b R^2)^2)`` measured in range bins: constant for a sonar or a LiDAR,
+    growing with the square of the range for a depth camera). NaNs without planes."""
+    res, rr = _plane_residuals(points_m, planes, thr_m, rng, max_points)
+    if len(res) < 50:
+        return float("nan"), (float("nan"), float("nan"))
+    return float(1.4826 * np.median(np.abs(res - np.median(res)))), _noise_model(res, rr)
+
+
+def _noise_model(res: np.ndarray, rr: np.ndarray) -> tuple[float, float]:
+    """(a, b) of ``sigma(R)^2 = a^2 + b^2 R^4`` from the robust spread of the residuals ``res``
+    in up to 6 range bins (non-negative least squares)."""
+    from scipy.optimize import nnls
+
+    n_bins = int(np.clip(len(res) // 200, 1, 6))
+    edges = np.quantile(rr, np.linspace(0, 1, n_bins + 1))
+    sig, rmid = [], []
+    for lo, hi in zip(edges[:-1], edges[1:]):
+        m = (rr >= lo) & (rr <= hi)
+        if m.sum() >= 30:
+            v = res[m]
+            sig.append(1.4826 * float(np.median(np.abs(v - np.median(v)))))
+            rmid.append(float(np.median(rr[m])))
+    if len(sig) < 2:
+        return (sig[0] if sig else float("nan")), 0.0
+    sol, _ = nnls(np.c_[np.ones(len(sig)), np.asarray(rmid) ** 4], np.asarray(sig) ** 2)
+    return float(np.sqrt(sol[0])), float(np.sqrt(sol[1]))
+
+
+def noise_at(model: tuple[float, float], range_m: float) -> float:
+    """The range noise (m) of :func:`plane_noise`'s ``model`` at ``range_m``."""
+    a, b = model
+    return float(np.hypot(a, b * range_m * range_m)) if np.isfinite(a) else float("nan")
+
+
+def _plane_residuals(points_m, planes, thr_m, rng, max_points):
+    """(range residuals (m), ranges (m)) of the points near the removed planes."""
     if not planes:
-        return float("nan")
+        return np.zeros(0), np.zeros(0)
     S = points_m if len(points_m) <= max_points else points_m[rng.integers(0, len(points_m), max_points)]
     R = np.linalg.norm(S, axis=1)
     D = S / np.maximum(R, 1e-12)[:, None]
-    res = []
+    res, rr = [], []
     for n, off, _ in planes:
         dn = D @ n
         dist = S @ n - off
         m = (np.abs(dist) < 2 * thr_m) & (np.abs(dn) > 0.3)
         res.append(dist[m] / dn[m])
-    res = np.concatenate(res)
-    if len(res) < 50:
-        return float("nan")
-    return float(1.4826 * np.median(np.abs(res - np.median(res))))
+        rr.append(R[m])
+    return np.concatenate(res), np.concatenate(rr)
 
 
 def cluster_points(Q: np.ndarray, link_m: float) -> np.ndarray:
@@ -315,67 +370,83 @@ def find_candidates(points_m: np.ndarray, radius_m: float, half_angle_rad: float
     info = {"n_voxels": int(len(Q)), "voxel_m": voxel}
     keep, planes = remove_planes(Q, min_extent_m=6.0 * r, thr_m=voxel, rng=rng)
     info["planes_removed"] = len(planes)
-    info["noise_m"] = plane_range_noise_m(P, planes, voxel, rng)
+    info["noise_m"], info["noise_model"] = plane_noise(P, planes, voxel, rng)
     Qk = Q[keep]
     labels = cluster_points(Qk, 2.2 * voxel)
     ids, counts = np.unique(labels, return_counts=True)
-    order = np.argsort(-counts)
     cands: list[Candidate] = []
-    min_vox = 6
-    for cid in ids[order]:
+    for cid in ids[np.argsort(-counts)]:
         X = Qk[labels == cid]
-        if len(X) < min_vox:
+        if len(X) < MIN_VOXELS:
             break
-        ext = np.ptp(X, axis=0).max()
-        if ext < 0.6 * r:
-            continue
-        if ext > 3.0 * r and len(X) >= 3 * LOCAL_PLANE_MIN:
-            X = _without_local_planes(X, r, voxel, rng)
-        for _attempt in range(min(6, 2 + len(X) // 200)):  # big clusters hide more
-            rng_c = float(np.linalg.norm(X.mean(axis=0)))
-            bloom = rng_c * np.tan(half_angle_rad)
-            thr = max(0.2 * r, 0.75 * voxel)
-            found = ransac_sphere(X, 0.6 * r, 1.5 * r + 2.0 * bloom + 0.01, thr,
-                                  2.5 * r + bloom, rng, n_hyp=96,
-                                  r_pref=r + bloom, r_pref_sd=0.25 * r)
-            if found is None:
-                break
-            c, rf, inl = found
-            if inl.sum() >= 8:  # closed-form refit on the RANSAC shell
-                c2, r2 = algebraic_sphere(X[inl])
-                if np.isfinite(r2) and np.linalg.norm(c2 - c) < 0.5 * r:
-                    c, rf = c2, r2
-            d = np.linalg.norm(X - c, axis=1)
-            shell = np.abs(d - rf) < thr
-            ball = d < rf + thr
-            support = int(shell.sum())
-            purity = support / max(int(ball.sum()), 1)
-            # a cap spreads in two directions; a chain or rope is a line
-            ev = np.linalg.eigvalsh(np.cov(X[shell].T)) if support >= 3 else np.zeros(3)
-            flat_ok = np.sqrt(max(ev[1], 0.0)) >= 0.2 * r
-            cn = float(np.linalg.norm(c))
-            cov_ok = flat_ok and cn > rf and disc_coverage(
-                X[shell] / np.linalg.norm(X[shell], axis=1)[:, None], c / cn,
-                float(np.arcsin(min(rf / cn, 1.0))) + half_angle_rad) >= 0.4
-            if support >= min_vox and cov_ok and 0.6 * r <= rf <= 1.5 * r + 2 * bloom + 0.01:
-                # ranking: support (saturating), purity, and the radius a blooming sphere of
-                # the nominal size would show (about r + range * tan(h))
-                r_exp = r + cn * np.tan(half_angle_rad)
-                quality = (min(1.0, support / 20.0) * purity
-                           * float(np.exp(-0.5 * ((rf - r_exp) / (0.2 * r)) ** 2)))
-                cands.append(Candidate(np.asarray(c, float), float(rf), support, float(purity),
-                                       int(cid), float(quality)))
-            X = X[~(ball | shell)]
-            if len(X) < 3 * min_vox:  # a second sphere in the same cluster needs some room
-                break
+        if np.ptp(X, axis=0).max() >= 0.6 * r:
+            cands += _cluster_candidates(X, int(cid), r, half_angle_rad, voxel, rng)
     cands.sort(key=lambda k: -k.quality)
-    info["n_clusters"] = int((counts >= min_vox).sum())
+    info["n_clusters"] = int((counts >= MIN_VOXELS).sum())
     info["n_coarse_candidates"] = len(cands)
     cands = _dedupe(cands, r)[:max_candidates]
     if cands:
         cands = prescreen(P, cands, r, half_angle_rad, info["noise_m"])
         info["n_prescreened"] = len(cands)
     return cands, info
+
+
+MIN_VOXELS = 6  # of a cluster, and on a candidate's shell
+N_HYP = 96  # RANSAC samples per look
+MAX_LOOKS = 12  # RANSAC looks in one cluster (a big one, a room with no plane removed, hides many round things)
+
+
+def _cluster_candidates(X: np.ndarray, cid: int, r: float, h: float, voxel: float,
+                        rng: np.random.Generator) -> list[Candidate]:
+    """Sphere candidates in one cluster of voxels: RANSAC, take the shell out, look again (a
+    big cluster, a ball with the block, chair or person it touches, hides more than one)."""
+    if np.ptp(X, axis=0).max() > 3.0 * r and len(X) >= 3 * LOCAL_PLANE_MIN:
+        X = _without_local_planes(X, r, voxel, rng)
+    out = []
+    bloom = float(np.linalg.norm(X.mean(axis=0))) * np.tan(h)
+    thr = max(0.2 * r, 0.75 * voxel)
+    r_hi = 1.5 * r + 2.0 * bloom + 0.01
+    for _attempt in range(min(MAX_LOOKS, 2 + len(X) // 200)):
+        found = ransac_sphere(X, 0.6 * r, r_hi, thr, 2.5 * r + bloom, rng, n_hyp=N_HYP,
+                              r_pref=r + bloom, r_pref_sd=0.25 * r)
+        if found is None:
+            break
+        c, rf, inl = found
+        if inl.sum() >= 8:  # closed-form refit on the RANSAC shell
+            c2, r2 = algebraic_sphere(X[inl])
+            if np.isfinite(r2) and np.linalg.norm(c2 - c) < 0.5 * r:
+                c, rf = c2, r2
+        d = np.linalg.norm(X - c, axis=1)
+        shell, ball = np.abs(d - rf) < thr, d < rf + thr
+        cand = _candidate(X, shell, ball, c, rf, cid, r, h, r_hi)
+        if cand is not None:
+            out.append(cand)
+        X = X[~(ball | shell)]
+        if len(X) < 3 * MIN_VOXELS:  # a second sphere in the same cluster needs some room
+            break
+    return out
+
+
+def _candidate(X, shell, ball, c, rf: float, cid: int, r: float, h: float, r_hi: float):
+    """The Candidate of a RANSAC sphere (centre ``c``, radius ``rf``, its shell and ball masks
+    over the cluster ``X``) when its shell is a cap seen from the sensor, else None."""
+    support = int(shell.sum())
+    purity = support / max(int(ball.sum()), 1)
+    # a cap spreads in two directions; a chain or rope is a line
+    ev = np.linalg.eigvalsh(np.cov(X[shell].T)) if support >= 3 else np.zeros(3)
+    cn = float(np.linalg.norm(c))
+    if (support < MIN_VOXELS or np.sqrt(max(ev[1], 0.0)) < 0.2 * r or cn <= rf
+            or not 0.6 * r <= rf <= r_hi):
+        return None
+    S = X[shell]
+    if disc_coverage(S / np.linalg.norm(S, axis=1)[:, None], c / cn,
+                     float(np.arcsin(min(rf / cn, 1.0))) + h) < 0.4:
+        return None
+    # ranking: support (saturating), purity, and the radius a blooming sphere of the nominal
+    # size would show (about r + range * tan(h))
+    r_exp = r + cn * np.tan(h)
+    quality = min(1.0, support / 20.0) * purity * float(np.exp(-0.5 * ((rf - r_exp) / (0.2 * r)) ** 2))
+    return Candidate(np.asarray(c, float), float(rf), support, float(purity), cid, float(quality))
 
 
 LOCAL_PLANE_MIN = 20  # voxels of a plane inside one cluster (a table top seen at a grazing angle)

@@ -24,7 +24,7 @@ from calib_core.synth.drift import drift_positions, write_drift_frames
 from calib_core.synth.ground_truth import GT_FILE, GT_FORMAT, to_list
 from calib_core.synth.layout import Layout, Placement, add_surroundings, place_targets, sample_layout
 from calib_core.synth.occlusion import occluded_fraction
-from calib_core.synth.presets import get_preset
+from calib_core.synth.presets import for_seed, get_preset
 from calib_core.synth.range_capture import simulate_range
 from calib_core.synth.rig import silhouette_uv
 from calib_core.synth.scene import Scene
@@ -41,6 +41,7 @@ def generate_session(out_dir, preset, seed: int, progress=None, **overrides) -> 
     Returns the session folder. Raises KeyError for an unknown preset name.
     """
     P = get_preset(preset).with_(**overrides) if overrides else get_preset(preset)
+    P = for_seed(P, seed)  # a preset's alternatives by seed (the carried ball's sensor)
     out = Path(out_dir)
     ss = np.random.SeedSequence([int(seed), 7919])
     r_rig, r_scene, r_noise, r_sonar = (np.random.default_rng(s) for s in ss.spawn(4))

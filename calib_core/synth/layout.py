@@ -223,6 +223,8 @@ def _holder_heights(holder: str, rig, radius: float, base_z: float) -> tuple:
     the top of what the sphere rests on sees the top hide it; a chair's seat is narrower
     than the ball, so the occlusion test alone decides there)."""
     lo = base_z + (0.5 if holder == "stick" else 0.3) + radius
+    if holder == "hand":  # held out at arm's length by a person standing on the floor
+        return base_z + 0.6, base_z + 1.5
     if holder in ("stick", "chair"):
         return lo, np.inf
     return lo, min(T[2, 3] for _, T in rig.cams.values()) - 0.05 + radius
@@ -231,7 +233,8 @@ def _holder_heights(holder: str, rig, radius: float, base_z: float) -> tuple:
 class _HolderCheck:
     """Placement test for presets whose sphere rests on (or is held by) something: the
     preset's own checks, then the sphere, with the very holder capture ``k`` will get (same
-    random stream), hidden by at most MAX_OCCLUDED_FRACTION from every camera."""
+    random stream), hidden by at most MAX_OCCLUDED_FRACTION from every camera (a carrying
+    hand may hide more: range_scenes.MAX_OCCLUDED)."""
 
     def __init__(self, P, seed, k, rig, radius, base_z, ok_extra):
         self.P, self.seed, self.k, self.rig = P, seed, k, rig
@@ -245,5 +248,6 @@ class _HolderCheck:
         parts = range_scenes.holder_parts(r_cap, self.P.holder, c, self.radius, self.base_z,
                                           self.rig.T_world_sonar[:3, 3])
         scene = Scene((ball, *parts))
-        return all(occluded_fraction(scene, 0, T_wc, c, self.radius) < MAX_OCCLUDED_FRACTION
+        limit = range_scenes.MAX_OCCLUDED.get(self.P.holder, MAX_OCCLUDED_FRACTION)
+        return all(occluded_fraction(scene, 0, T_wc, c, self.radius) < limit
                    for _, T_wc in self.rig.cams.values())

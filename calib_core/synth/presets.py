@@ -65,9 +65,10 @@ class Preset:
     jpeg_quality: int = 90
     # range side (issue 11): the range sensor ("sonar", or "lidar16" / "rgbd" from
     # calib_core.synth.range_sim, no beam footprint), what holds the ball ("" = the scene's
-    # chain or stand; "chair", "table" or "stick" with a person, calib_core.synth.range_scenes),
+    # chain or stand; "chair", "table", "stick" with a person, or "hand": a person carrying it,
+    # calib_core.synth.range_scenes),
     # a solid ball instead of the open mesh, and the range of true diameters (m)
-    range_sensor: str = "sonar"
+    range_sensor: str = "sonar"  # or alternatives by seed, "rgbd|lidar16" (see for_seed)
     holder: str = ""
     solid_ball: bool = False
     diameter_range: tuple = (0.18, 0.30)
@@ -130,7 +131,30 @@ _LIST.append(Preset(
     "half-hidden target (a wrong image detection) and one whose target moved between scan and image",
     n_captures=8, pan_step_deg=0.75, moved=True, decoy_hidden=True))
 
+_LIST.append(Preset(
+    "carried", "a yellow foam ball held out at arm's length by a person standing behind it (one hand under it or "
+    "two on its sides, hiding part of its outline), in front of a wall; RGB-D (even seeds) or 16-ring LiDAR (odd "
+    "seeds); no background frames", n_captures=8, scene="lab", range_sensor="rgbd|lidar16", holder="hand",
+    solid_ball=True, diameter_range=(0.3, 0.5), bright=True, n_backgrounds=0))
+
 PRESETS: dict[str, Preset] = {p.name: p for p in _LIST}
+
+
+# a 16-ring LiDAR's rings are 2 deg apart: its balls are gym balls at least this big (m)
+MIN_DIAMETER_M = {"lidar16": 0.45}
+
+
+def for_seed(preset: Preset, seed: int) -> Preset:
+    """The preset as a seed makes it: a ``range_sensor`` of alternatives ("rgbd|lidar16") is
+    the first for even seeds, the second for odd ones (the ball then at least as big as that
+    sensor needs, MIN_DIAMETER_M). Other presets are returned unchanged."""
+    if "|" not in preset.range_sensor:
+        return preset
+    options = preset.range_sensor.split("|")
+    sensor = options[int(seed) % len(options)]
+    lo, hi = preset.diameter_range
+    lo2 = max(lo, MIN_DIAMETER_M.get(sensor, 0.0))
+    return preset.with_(range_sensor=sensor, diameter_range=(lo2, max(hi, lo2 + 0.2)))
 
 
 def get_preset(name_or_preset) -> Preset:

@@ -71,7 +71,8 @@ def range_capture(seed: int, sensor: str, holder: str, radius_m: float | None = 
     for _ in range(500):
         d = rng.uniform(1.2, far)
         az = np.radians(rng.uniform(-25, 25))
-        z = floor_z + r + (rng.uniform(0.3, 0.8) if holder != "stick" else rng.uniform(0.5, 1.4))
+        lo, hi = {"stick": (0.5, 1.4), "hand": (0.4, 1.1)}.get(holder, (0.3, 0.8))
+        z = floor_z + r + rng.uniform(lo, hi)
         c = np.array([d * np.cos(az), d * np.sin(az), z])
         if in_field(sensor, c, r, cfg):
             break

@@ -1,5 +1,6 @@
-"""Scene objects for range-sensor presets: a solid ball resting on a chair or a table, or
-held on a stick by a person-sized figure, in a room (floor and wall). World frame, metres, z up.
+"""Scene objects for range-sensor presets: a solid ball resting on a chair or a table, held
+on a stick by a person-sized figure, or carried in a person's hands, in a room (floor and
+wall). World frame, metres, z up.
 
 These are the cases a range detector must keep: a sphere touching something larger than
 itself (a seat, a table top, a seabed slab) or attached to a stick with a person close
@@ -22,7 +23,10 @@ STICK = Material((0.04, 0.04, 0.04), 0.5)
 FLOOR = Material((0.55, 0.52, 0.48), 0.6)
 WALL = Material((0.62, 0.38, 0.30), 0.7)
 
-HOLDERS = ("chair", "table", "stick")
+HOLDERS = ("chair", "table", "stick", "hand")
+# occluded fraction of the ball (calib_core.synth.occlusion) a placement may show in a camera:
+# a carrying hand is meant to hide part of the outline; other holders must not hide it
+MAX_OCCLUDED = {"hand": 0.3}
 
 
 def solid_ball(center_world, radius_m: float, yellow: bool) -> Sphere:
@@ -102,12 +106,64 @@ def stick_and_person(rng, center, radius_m: float, floor_z: float, sensor_world)
     return [stick, Group(tuple(body), CLOTH, tag="person"), head]
 
 
+def carried_by_person(rng, center, radius_m: float, floor_z: float, sensor_world) -> list:
+    """A person standing behind the ball (as the sensor sees it) and holding it out at arm's
+    length in one hand (from below) or two (on its sides); each hand lies on the ball's surface
+    near its outline, so it hides part of the outline and continues it in range."""
+    c = np.asarray(center, float)
+    yaw = _yaw_away(rng, c, sensor_world, 35.0)
+    away = np.array([np.cos(yaw), np.sin(yaw), 0.0])
+    side = np.cross([0, 0, 1.0], away)
+    reach = float(rng.uniform(0.42, 0.62)) + radius_m
+    feet = c + away * reach
+    feet[2] = floor_z
+    shoulder_z = max(c[2] + float(rng.uniform(0.05, 0.45)), floor_z + 1.05)
+    height = shoulder_z - floor_z
+    hip, neck = feet + [0, 0, 0.62 * height], feet + [0, 0, height]
+    parts = [Capsule(tuple(hip), tuple(neck), 0.15),
+             Capsule(tuple(feet + side * 0.1 + [0, 0, 0.05]), tuple(hip + side * 0.08), 0.07),
+             Capsule(tuple(feet - side * 0.1 + [0, 0, 0.05]), tuple(hip - side * 0.08), 0.07)]
+    hands = [None] if rng.random() < 0.4 else [1.0, -1.0]
+    skin = [Sphere(tuple(neck + [0, 0, 0.2]), 0.1, SKIN, tag="person")]
+    for sgn in hands:
+        wrist, tip = _hand_on_ball(rng, c, radius_m, away, side, sgn)
+        sh = neck + side * (0.2 * (sgn or float(rng.choice([-1.0, 1.0])))) - [0, 0, 0.04]
+        parts.append(Capsule(tuple(sh), tuple(wrist), 0.045))
+        skin.append(Capsule(tuple(wrist), tuple(tip), 0.04, SKIN, tag="hand"))
+    if len(hands) == 1:  # the other arm hangs
+        sh = neck - side * 0.2 - [0, 0, 0.04]
+        parts.append(Capsule(tuple(sh), tuple(sh - [0, 0, 0.6 * height / 1.45]), 0.045))
+    return [Group(tuple(parts), CLOTH, tag="person"), *skin]
+
+
+def _hand_on_ball(rng, c, radius_m: float, away, side, sgn):
+    """(wrist, fingertips) of a hand lying on the ball: under it (``sgn`` None) or on its side
+    ``sgn`` (+1 / -1 along ``side``), tilted a little towards the sensor so that the fingers
+    wrap over the visible outline."""
+    if sgn is None:
+        u = np.array([0, 0, -1.0]) * np.cos(np.radians(rng.uniform(10, 35))) - away * 0.4
+    else:
+        u = side * sgn + [0, 0, -rng.uniform(0.0, 0.5)] - away * rng.uniform(-0.2, 0.5)
+    u /= np.linalg.norm(u)
+    # the fingers run from the wrist (towards the person) over the surface towards the sensor
+    t = -away - u * float(-away @ u)
+    t /= max(np.linalg.norm(t), 1e-9)
+    a = np.radians(rng.uniform(25, 40))  # the hand's length as an angle on the ball
+    rh = radius_m + 0.035
+    wrist = c + rh * (np.cos(a / 2) * u - np.sin(a / 2) * t)
+    tip = c + rh * (np.cos(a / 2) * u + np.sin(a / 2) * t)
+    return wrist, tip
+
+
 def holder_parts(rng, kind: str, center, radius_m: float, floor_z: float, sensor_world) -> list:
-    """The holder of the ball: "chair", "table" or "stick" (with its person)."""
+    """The holder of the ball: "chair", "table", "stick" (with its person) or "hand" (a person
+    carrying it)."""
     if kind == "chair":
         return [chair(rng, center, radius_m, floor_z, sensor_world)]
     if kind == "table":
         return [table(rng, center, radius_m, floor_z)]
     if kind == "stick":
         return stick_and_person(rng, center, radius_m, floor_z, sensor_world)
+    if kind == "hand":
+        return carried_by_person(rng, center, radius_m, floor_z, sensor_world)
     raise ValueError(f"unknown holder {kind!r}; use one of {HOLDERS}")
