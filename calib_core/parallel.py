@@ -20,10 +20,11 @@ import os
 _DATA = None  # the SessionData of this worker process (set by _init)
 
 
-# Below this many tasks the pool costs more than it saves: its fork server imports the
-# detectors again (~0.7 CPU-s) and every worker receives the session. A fresh `sonarcal
-# calibrate` of 9 captures x 2 cameras at 1080p (28 tasks) took 2.4-2.5 s in one process and
-# 3.7-4.3 s in two, on 2 cores at load 3.3 (benchmarks/bench_calibrate_speed.py).
+# Below this many tasks the pool costs more than it saves on a shared machine: its fork server
+# imports the detectors again (~0.7 CPU-s) and every worker receives the session. A fresh
+# `sonarcal calibrate` of 9 captures x 2 cameras at 1080p (28 tasks) on 2 cores
+# (benchmarks/bench_calibrate_speed.py): 2.49 s in one process, 3.59 s in two at load 2.4-2.8;
+# 2.43 s against 2.18 s at load 1.7-2.1.
 MIN_POOL_TASKS = 40
 
 
