@@ -8,8 +8,9 @@ The pool uses a fork server (a clean process that imported the detectors once an
 workers): forking the caller itself can deadlock, since OpenCV's and BLAS's thread pools (and
 the workbench's server threads) do not survive a fork. As with any spawn / fork-server pool, a
 calling script needs an ``if __name__ == "__main__":`` guard; without one the pool breaks and
-detection runs in process instead. ``SONARCAL_WORKERS`` overrides the process count (1: in
-process).
+detection runs in process instead. Small sessions (fewer than ``MIN_POOL_TASKS`` detections)
+run in process, where they finish sooner. ``SONARCAL_WORKERS`` overrides the process count
+(1: in process).
 """
 
 from __future__ import annotations
@@ -19,10 +20,23 @@ import os
 _DATA = None  # the SessionData of this worker process (set by _init)
 
 
+# Below this many tasks the pool costs more than it saves on a shared machine: its fork server
+# imports the detectors again (~0.7 CPU-s) and every worker receives the session. A fresh
+# `sonarcal calibrate` of 9 captures x 2 cameras at 1080p (28 tasks) on 2 cores
+# (benchmarks/bench_calibrate_speed.py): 2.49 s in one process, 3.59 s in two at load 2.4-2.8;
+# 2.43 s against 2.18 s at load 1.7-2.1.
+MIN_POOL_TASKS = 40
+
+
 def worker_count(n_tasks: int, workers: int | None = None) -> int:
+    """Processes for ``n_tasks`` detections: ``workers``, else ``SONARCAL_WORKERS``, else one
+    per core when there are at least :data:`MIN_POOL_TASKS` tasks (else 1: in process)."""
     if workers is None:
         env = os.environ.get("SONARCAL_WORKERS", "").strip()
-        workers = int(env) if env.isdigit() and int(env) > 0 else (os.cpu_count() or 1)
+        if env.isdigit() and int(env) > 0:
+            workers = int(env)
+        else:
+            workers = (os.cpu_count() or 1) if n_tasks >= MIN_POOL_TASKS else 1
     return max(1, min(int(workers), n_tasks))
 
 
@@ -42,17 +56,42 @@ def _init(data) -> None:
 
 def _task(item):
     """(cid, sensor, entry) or (cid, sensor, SessionError parts): SessionError does not pickle.
-    A sonar task carries the session's beam width (estimated after the pool started)."""
+    A sonar task carries the session's beam width (estimated after the pool started), an image
+    task the file its camera's background model was saved to ("" when the camera has none)."""
     from calib_core.errors import SessionError
     from calib_core.detect.entries import detect_one
 
-    cid, sensor, beam = item
+    cid, sensor, beam, background_file = item
     if beam is not None:
         _DATA.beam_width_deg = beam
+    if background_file is not None and sensor not in _DATA.backgrounds:
+        _DATA.backgrounds[sensor] = _load_background(background_file)
     try:
         return cid, sensor, detect_one(_DATA, cid, sensor)
     except SessionError as e:
         return cid, sensor, ("error", None if e.path is None else str(e.path), e.problem)
+
+
+def _load_background(path: str):
+    import numpy as np
+
+    from calib_core.detect.image import prepare_background
+
+    return prepare_background(np.load(path)) if path else None
+
+
+def _share_backgrounds(data, todo, folder: str) -> dict:
+    """{camera: .npy file of its prepared background model, or "" when it has none}: each
+    worker loads a model once instead of receiving every camera's (25 MB at 1080p) at start."""
+    import numpy as np
+
+    out = {}
+    for k, cam in enumerate(sorted({sensor for _, sensor in todo if sensor != "sonar"})):
+        bg = data.backgrounds.get(cam)
+        out[cam] = "" if bg is None else os.path.join(folder, f"background{k}.npy")
+        if bg is not None:
+            np.save(out[cam], bg.image)
+    return out
 
 
 def _crop_task(cid, detections):
@@ -73,18 +112,23 @@ def _scan_task(crops):
 
 
 def _cloud_readers(data, todo) -> list[str]:
-    """open3d when sonar tasks will read .ply / .pcd clouds: imported once in the fork server
-    rather than once in every worker (it takes about a second)."""
+    """open3d when sonar tasks will read compressed PCD clouds (the only kind numpy does not
+    read; see :mod:`calib_core.io.cloud_binary`): imported once in the fork server rather than
+    once in every worker (it takes about a second)."""
+    from calib_core.io.cloud_binary import needs_open3d
+
     cids = {cid for cid, sensor in todo if sensor == "sonar"}
-    suffixes = {data.session.capture(c).cloud_path.suffix.lower() for c in cids}
-    return ["open3d"] if suffixes & {".ply", ".pcd"} else []
+    return ["open3d"] if any(needs_open3d(data.session.capture(c).cloud_path) for c in cids) else []
 
 
 def _prepare(data, todo) -> None:
-    """Camera models and background models, computed once in the parent for every worker."""
-    for cam in {sensor for _, sensor in todo if sensor != "sonar"}:
-        data.camera(cam)
-        data.background(cam)
+    """Camera models and background models, computed once in the parent for every worker, one
+    thread per camera (decoding and the median release the GIL)."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    cams = sorted({sensor for _, sensor in todo if sensor != "sonar"})
+    with ThreadPoolExecutor(max(1, min(len(cams), os.cpu_count() or 1))) as ex:
+        list(ex.map(lambda cam: (data.camera(cam), data.background(cam)), cams))
 
 
 def _unwrap(cid, sensor, out):
@@ -123,58 +167,89 @@ def run_detections(data, todo: list[tuple[str, str]], progress=None, workers: in
 
 
 def _run_pool(data, todo, progress, n: int, beam_ids: list, beam_detections: dict) -> list:
+    """The beam width's crops start while this process prepares the background models."""
+    import dataclasses
     import multiprocessing as mp
-    from concurrent.futures import ProcessPoolExecutor
+    import tempfile
+    from concurrent.futures import ProcessPoolExecutor, ThreadPoolExecutor
+    from multiprocessing import forkserver
 
     from calib_core.detect.entries import beam_capture_ids
-
-    from multiprocessing import forkserver
 
     ctx = mp.get_context("forkserver")
     ctx.set_forkserver_preload(["calib_core.pipeline", "calib_core.detect.image", "calib_core.detect.sonar",
                                 *_cloud_readers(data, todo)])
     forkserver.ensure_running()  # the server imports the detectors on the other core while we prepare
-    _prepare(data, todo)
     results: list = [None] * len(todo)
     if progress:
         progress(0, len(todo), f"detecting in {n} processes")
     later = [k for k, t in enumerate(todo) if beam_ids and t[1] == "sonar"]
     crop_ids = beam_capture_ids(beam_ids) if beam_ids else []
-    with ProcessPoolExecutor(n, mp_context=ctx, initializer=_init, initargs=(data,)) as ex:
+    worker_data = dataclasses.replace(data, backgrounds={})
+    with tempfile.TemporaryDirectory(prefix="sonarcal-bg-") as tmp, ThreadPoolExecutor(1) as thread, \
+            ProcessPoolExecutor(n, mp_context=ctx, initializer=_init, initargs=(worker_data,)) as ex:
         try:
-            _drain(ex, data, todo, progress, results, later, crop_ids, beam_detections, n)
+            prepared = thread.submit(_prepare, data, todo)  # while the fork server imports and the crops run
+            q = _Queue(ex, n + 1)
+            # the beam width's crops first (its scan and then every sonar task wait for them)
+            q.add([(("crop", cid), _crop_task, (cid, beam_detections)) for cid in crop_ids])
+            prepared.result()
+            files = _share_backgrounds(data, todo, tmp)
+            q.add([(k, _task, ((*t, None, files.get(t[1])),)) for k, t in enumerate(todo) if k not in later])
+            _drain(q, data, todo, progress, results, later, crop_ids, n)
         except BaseException:  # e.g. Cancelled from the progress callback: queued tasks are dropped
             ex.shutdown(wait=True, cancel_futures=True)
             raise
     return [_unwrap(*r) for r in results]
 
 
-def _drain(ex, data, todo, progress, results: list, later: list, crop_ids: list, beam_detections, n: int) -> None:
-    """Submit the tasks and collect their results as they finish (the beam width first)."""
-    from concurrent.futures import FIRST_COMPLETED, wait
+class _Queue:
+    """The pool's work in priority order, at most ``limit`` tasks handed to the pool at a time
+    (the pool itself runs them first come, first served): the beam width's crops first, its scan
+    as soon as the crops are in, then the sonar tasks waiting for the width, the images last, as
+    nothing waits for them."""
 
+    def __init__(self, ex, limit: int):
+        self.ex, self.limit, self.waiting, self.running = ex, limit, [], {}
+
+    def add(self, items: list, first: bool = False) -> None:
+        """Queue ``[(key, function, args)]``, ahead of the waiting tasks with ``first``."""
+        self.waiting = [*items, *self.waiting] if first else [*self.waiting, *items]
+        self.fill()
+
+    def fill(self) -> None:
+        while self.waiting and len(self.running) < self.limit:
+            key, fn, args = self.waiting.pop(0)
+            self.running[self.ex.submit(fn, *args)] = key
+
+    def finished(self, timeout: float):
+        from concurrent.futures import FIRST_COMPLETED, wait
+
+        done, _ = wait(self.running, timeout=timeout, return_when=FIRST_COMPLETED)
+        return [(self.running.pop(f), f.result()) for f in done]
+
+
+def _drain(q: _Queue, data, todo, progress, results: list, later: list, crop_ids: list, n: int) -> None:
+    """Collect the results as they finish; queue the scan when the crops are in, the sonar tasks
+    when the beam width is known."""
     crops: dict = {}
-    # first the beam width's crops (its scan and then every sonar task wait for them)
-    futures = {ex.submit(_crop_task, cid, beam_detections): ("crop", cid) for cid in crop_ids}
-    futures.update({ex.submit(_task, (*t, None)): k for k, t in enumerate(todo) if k not in later})
     done, label = 0, f"detecting in {n} processes"
-    while futures:
-        finished, _ = wait(futures, timeout=0.5, return_when=FIRST_COMPLETED)
+    while q.running:
+        finished = q.finished(0.5)
         if not finished and progress:
             progress(done, len(todo), label)  # also lets the caller cancel between results
-        for f in finished:
-            k = futures.pop(f)
+        for k, out in finished:
             if isinstance(k, tuple):
-                crops[k[1]] = f.result()
+                crops[k[1]] = out
                 if len(crops) == len(crop_ids):
-                    futures[ex.submit(_scan_task, [crops[c] for c in crop_ids])] = -1
-                continue
-            if k == -1:
-                data.beam_width_deg = f.result()
+                    q.add([(-1, _scan_task, ([crops[c] for c in crop_ids],))], first=True)
+            elif k == -1:
+                data.beam_width_deg = out
                 beam = data.effective_beam_width_deg
-                futures.update({ex.submit(_task, (*todo[j], beam)): j for j in later})
-                continue
-            results[k] = f.result()
-            done, label = done + 1, f"{results[k][0]} {results[k][1]}"
-            if progress:
-                progress(done, len(todo), label)
+                q.add([(j, _task, ((*todo[j], beam, None),)) for j in later], first=True)
+            else:
+                results[k] = out
+                done, label = done + 1, f"{out[0]} {out[1]}"
+                if progress:
+                    progress(done, len(todo), label)
+        q.fill()

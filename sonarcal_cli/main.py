@@ -19,11 +19,13 @@ from calib_core.errors import SessionError
 COMMANDS = ["info", "synth", "detect", "calibrate", "intrinsics", "stereo", "serve", "export", "report", "import", "plan"]
 
 
-def build_parser() -> argparse.ArgumentParser:
+def build_parser(only: str | None = None) -> argparse.ArgumentParser:
+    """The parser of every command, or with ``only`` of that one (start-up: the other commands'
+    modules and what they import are not loaded)."""
     p = argparse.ArgumentParser(prog="sonarcal", description="Camera to 3D imaging sonar calibration.")
     p.add_argument("--version", action="version", version=f"sonarcal {__version__}")
     sub = p.add_subparsers(dest="command", metavar="COMMAND")
-    for name in COMMANDS:
+    for name in [only] if only in COMMANDS else COMMANDS:
         importlib.import_module(f"sonarcal_cli.cmd_{name}").add_parser(sub)
     return p
 
@@ -42,7 +44,8 @@ def _quiet_native_logs() -> None:
 
 def main(argv: list[str] | None = None) -> int:
     _quiet_native_logs()
-    parser = build_parser()
+    argv = sys.argv[1:] if argv is None else list(argv)
+    parser = build_parser(argv[0] if argv else None)
     try:
         args = parser.parse_args(argv)
     except SystemExit as e:  # argparse already printed a usage message

@@ -164,3 +164,18 @@ def test_a_cancelled_job_ends_quietly_and_no_new_job_starts():
     assert runner.running is None and errors == []
     runner.start("detection", job)  # refused once shutting down
     assert runner.running is None
+
+
+def _without_timing(dets: dict) -> dict:
+    drop = {"detected_at", "time_ms", "region_ms"}
+    return {cid: {s: {k: v for k, v in e.items() if k not in drop} for s, e in d.items()} for cid, d in dets.items()}
+
+
+def test_process_pool_gives_the_in_process_detections(quick):
+    """Two worker processes (crops, beam-width scan and sonar in priority order; background
+    models shared through files) return exactly what one process returns."""
+    session, _gt, dets = quick
+    assert any(spec.background_path for spec in session.cameras.values())
+    pooled = detect_session(SessionData(session), {}, workers=2)
+    single = detect_session(SessionData(session), {}, workers=1)
+    assert _without_timing(pooled) == _without_timing(single) == _without_timing(dets)

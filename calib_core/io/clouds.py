@@ -1,4 +1,4 @@
-"""Point cloud files: .ply .pcd (open3d), .xyz .csv .txt, .npy, .las .laz (laspy).
+"""Point cloud files: .ply .pcd (numpy; open3d for compressed PCD), .xyz .csv .txt, .npy, .las .laz (laspy).
 
 Every loader returns a :class:`Cloud` with finite float64 points in metres, or
 raises :class:`SessionError` naming the file and the problem.
@@ -148,14 +148,11 @@ def _pcd_bytes(pts: np.ndarray, inten: np.ndarray | None) -> bytes:
 
 
 # ---- readers -------------------------------------------------------------
-def _read_open3d(path: Path):
-    """PLY/PCD through open3d's tensor API (keeps an intensity field).
+def _read_ply_pcd(path: Path):
+    """PLY/PCD: ASCII and plain binary files with numpy, the rest through open3d.
 
-    The header is checked first (open3d zero-fills truncated files and only warns);
-    open3d's own warnings are silenced, our SessionError says what is wrong.
+    The header is checked first (open3d zero-fills truncated files and only warns).
     """
-    import open3d as o3d
-
     from calib_core.io.cloud_headers import check_cloud_header
 
     n_declared = check_cloud_header(path)
@@ -167,6 +164,17 @@ def _read_open3d(path: Path):
         from calib_core.io.cloud_ascii import read_ascii_pcd, read_ascii_ply
 
         return (read_ascii_ply if path.suffix.lower() == ".ply" else read_ascii_pcd)(path)
+    from calib_core.io.cloud_binary import read_binary_pcd, read_binary_ply
+
+    out = (read_binary_ply if path.suffix.lower() == ".ply" else read_binary_pcd)(path)
+    return out if out is not None else _read_open3d(path, n_declared)
+
+
+def _read_open3d(path: Path, n_declared: int):
+    """PLY/PCD through open3d's tensor API (keeps an intensity field); open3d's own warnings
+    are silenced, our SessionError says what is wrong."""
+    import open3d as o3d
+
     with o3d.utility.VerbosityContextManager(o3d.utility.VerbosityLevel.Error):
         pcd = o3d.t.io.read_point_cloud(str(path))
     if "positions" not in pcd.point or len(pcd.point.positions) == 0:
@@ -306,8 +314,8 @@ def _read_las(path: Path):
 
 
 _READERS = {
-    ".ply": _read_open3d,
-    ".pcd": _read_open3d,
+    ".ply": _read_ply_pcd,
+    ".pcd": _read_ply_pcd,
     ".xyz": _read_text,
     ".csv": _read_text,
     ".txt": _read_text,
