@@ -90,14 +90,21 @@ def read_ascii_ply(path: Path):
     return arr[:, cols], inten
 
 
-def read_ascii_pcd(path: Path):
-    """(points (N,3), intensity or None) from an ASCII PCD."""
+def pcd_header(path: Path) -> tuple[dict[str, list[str]], int]:
+    """A PCD header as {KEYWORD: [values]} (FIELDS, SIZE, TYPE, COUNT, POINTS, DATA, ...) and the
+    byte offset of the data after it."""
     lines, offset = _header_lines(path, "DATA")
     fields: dict[str, list[str]] = {}
     for line in lines:
         parts = line.split()
         if parts and parts[0].isupper():
             fields[parts[0]] = parts[1:]
+    return fields, offset
+
+
+def read_ascii_pcd(path: Path):
+    """(points (N,3), intensity or None) from an ASCII PCD."""
+    fields, offset = pcd_header(path)
     names = [n.lower() for n in fields["FIELDS"]]
     counts = [int(v) for v in fields.get("COUNT", ["1"] * len(names))]
     n = int(fields["POINTS"][0]) if "POINTS" in fields else int(fields["WIDTH"][0]) * int(fields.get("HEIGHT", ["1"])[0])

@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from calib_core.errors import SessionError
-from calib_core.io.cloud_ascii import _INTENSITY_NAMES, _header_lines
+from calib_core.io.cloud_ascii import _INTENSITY_NAMES, _header_lines, pcd_header
 
 _PLY_TYPES = {"char": "i1", "int8": "i1", "uchar": "u1", "uint8": "u1", "short": "i2", "int16": "i2",
               "ushort": "u2", "uint16": "u2", "int": "i4", "int32": "i4", "uint": "u4", "uint32": "u4",
@@ -60,12 +60,7 @@ def _ply_vertices(path: Path, offset: int, n: int, props: list, order: str):
 
 def read_binary_pcd(path: Path):
     """(points, intensity or None) of a PCD with ``DATA binary``, or None for open3d to read."""
-    lines, offset = _header_lines(path, "DATA")
-    fields: dict[str, list[str]] = {}
-    for line in lines:
-        parts = line.split()
-        if parts and parts[0].isupper():
-            fields[parts[0]] = parts[1:]
+    fields, offset = pcd_header(path)
     if [v.lower() for v in fields.get("DATA", [])[:1]] != ["binary"]:
         return None
     names = fields["FIELDS"]
