@@ -95,3 +95,24 @@ def test_readmission_takes_back_good_captures_and_not_a_wrong_one(seed):
     T, cov = fit_subset(cd, inl, rig.T_cam_sonar["cam1"])
     extra = pnp._readmit(cd, T, inl, gate_test(cd, T, cov, inl))
     assert extra[0] and not extra[1] and not extra[inl].any()
+
+
+def test_a_wrong_tight_core_does_not_leave_out_good_captures():
+    """Clean data (1 px / 10 mm, stated 1 px / 5 mm) where the tightest 4-capture core fits a pose
+    that four good captures contradict: the solver must come back to the fit on all nine (it used
+    to keep 5 of 9 and land 180 mm off)."""
+    from calib_core.geometry import pose_error
+    from calib_core.solve.model import camera_data
+    from calib_core.solve.simulate import synthetic_rig
+    from calib_core.solve.single import solve_camera
+
+    seed, n = 10_157, 9
+    rig = synthetic_rig(seed, n_captures=n, sigma_px=1e-9, sigma_m=1e-9)
+    rng = np.random.default_rng(seed + 7_000_003)
+    uv = rig.uv_px["cam1"] + 1.0 * rng.normal(size=(n, 2))
+    X = rig.X_sonar_m + 0.010 * rng.normal(size=(n, 3))
+    cd = camera_data("cam1", rig.cameras["cam1"], rig.capture_ids, uv, np.repeat(np.eye(2)[None], n, 0),
+                     X, np.repeat(0.005**2 * np.eye(3)[None], n, 0))
+    sol = solve_camera(cd, loo=False)
+    assert sol.used.all()
+    assert pose_error(sol.T_cam_sonar, rig.T_cam_sonar["cam1"])[1] < 0.05
