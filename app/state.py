@@ -308,7 +308,7 @@ class WorkbenchState:
 
     def _put(self, cid: str, sensor: str, new: dict | None, n: int, kind: str, action: str, client: str,
              of: int | None = None) -> tuple:
-        """Replace one entry (under the file lock), appending a change record; None leaves a placeholder
+        """Replace one entry (under the file lock), appending a change record; None leaves an empty `auto` entry
         that asks for a fresh detection (its history, and so undo/redo, must survive)."""
         prev = copy.deepcopy(self.detections.get(cid, {}).get(sensor))
         new = copy.deepcopy(new) if new is not None else {"status": "auto", RESTORED_MISSING: True}
