@@ -83,6 +83,7 @@ def safe_unpack_zip(data, dest_parent: Path, label: str = "upload.zip",
         except (FileExistsError, NotADirectoryError, IsADirectoryError):
             shutil.rmtree(out, ignore_errors=True)
             raise SessionError(where, "archive holds the same path twice, or a file where a folder should be") from None
+        # zipfile raises NotImplementedError for a compression method it cannot read (not a stub here)
         except (zipfile.BadZipFile, zipfile.LargeZipFile, EOFError, NotImplementedError, ValueError, zlib.error) as e:
             shutil.rmtree(out, ignore_errors=True)
             raise SessionError(where, f"corrupt or unsupported zip archive ({type(e).__name__})") from None
