@@ -2,7 +2,9 @@
 
 import numpy as np
 
-from calib_core.detect.image_score import features, fit_logistic, probability, reliability_table
+from calib_core.detect import image_score
+from calib_core.detect.image_score import (ScoreModel, features, fit, fit_logistic, probability,
+                                           reliability_rows, reliability_table)
 
 
 def test_fit_logistic_recovers_a_known_model():
@@ -15,16 +17,58 @@ def test_fit_logistic_recovers_a_known_model():
     assert np.allclose(w, w_true, atol=0.15)
 
 
-def test_probability_is_monotone_in_coverage_and_bounded():
-    ex = {"outline_coverage": 0.5, "edge_rms_px": 0.4, "outside_mismatch": 0.05, "edge_contrast": 60.0}
-    lo = probability(features(ex, 40.0, 0.9), 0.0)
-    hi = probability(features(dict(ex, outline_coverage=0.95), 40.0, 0.9), 0.0)
-    rough = probability(features(dict(ex, edge_rms_px=0.9), 40.0, 0.9), 0.0)
-    assert 0.0 <= lo < hi <= 1.0
-    assert rough < probability(features(ex, 40.0, 0.9), 0.0)
+def _known(n, rng):
+    X = np.column_stack([rng.uniform(0.3, 1.0, n), rng.uniform(0, 2, n), rng.uniform(0, 0.5, n),
+                         rng.uniform(1, 4, n)])
+    z = -4 + 8 * X[:, 0] - 1.5 * X[:, 1] - 3 * X[:, 2] + 0.5 * X[:, 3]
+    y = (rng.random(n) < 1 / (1 + np.exp(-z))).astype(float)
+    return X, y
+
+
+def test_fit_is_calibrated_on_held_out_data():
+    """Scores of a fitted model match the share right, bin by bin, on fresh samples."""
+    rng = np.random.default_rng(1)
+    X, y = _known(3000, rng)
+    model = fit(X, y, l2=1.0)
+    Xt, yt = _known(6000, rng)
+    rows = reliability_rows([(model.probability(x), bool(r)) for x, r in zip(Xt, yt)])
+    for lo, hi, n, mean, right in rows:
+        if n >= 200:
+            assert abs(mean - right) < 0.05, (lo, hi, n, mean, right)
+
+
+def test_platt_line_corrects_an_over_confident_logit():
+    """A model whose logits are twice too large gets a slope near 0.5 from the recalibration."""
+    rng = np.random.default_rng(2)
+    z = rng.normal(0, 2, 5000)
+    y = (rng.random(5000) < 1 / (1 + np.exp(-z))).astype(float)
+    ab = fit_logistic((2 * z)[:, None], y, l2=1e-3)
+    assert abs(ab[1] - 0.5) < 0.05 and abs(ab[0]) < 0.1
+
+
+def test_features_are_capped_where_synthetic_and_real_differ():
+    ex = {"outline_coverage": 0.8, "edge_rms_px": 5.0, "outside_mismatch": 0.1, "edge_contrast": 500.0}
+    f = features(ex, 40.0, 0.9)
+    assert f[1] == image_score.RMS_REL_CAP
+    assert np.isclose(f[3], np.log1p(image_score.CONTRAST_CAP))
+    assert features(dict(ex, edge_contrast=200.0), 10.0, 0.9)[3] == f[3]  # radius not used either
+
+
+def test_probability_is_monotone_and_bounded():
+    ex = {"outline_coverage": 0.5, "edge_rms_px": 0.4, "outside_mismatch": 0.05, "edge_contrast": 30.0}
+    p = lambda e: probability(features(e, 40.0, 0.9), 0.0)  # noqa: E731
+    assert 0.0 <= p(ex) < p(dict(ex, outline_coverage=0.95)) <= 1.0
+    assert p(dict(ex, edge_rms_px=0.9)) < p(ex)
+    assert p(dict(ex, outside_mismatch=0.5)) < p(ex)
+    assert p(dict(ex, edge_contrast=3.0)) < p(ex)
+
+
+def test_score_model_platt_applies_to_the_logit():
+    m = ScoreModel(np.array([0.0, 1.0]), (0.5, 1.0))
+    assert np.isclose(m.probability(np.array([2.0])), 1 / (1 + np.exp(-2.0)))
 
 
 def test_reliability_table_bins():
     t = reliability_table([(0.99, True), (0.97, True), (0.3, False), (0.6, True)], "t")
-    assert "| [0.95, 1.00] | 2 | 0.980 | 1.000 |" in t
-    assert "| [0.00, 0.50) | 1 | 0.300 | 0.000 |" in t
+    assert "| [0.95, 1.00] | 2 | 0.980 | 1.000 | +0.020 |" in t
+    assert "| [0.00, 0.50) | 1 | 0.300 | 0.000 | -0.300 |" in t
