@@ -3,8 +3,8 @@
 import numpy as np
 
 from calib_core.detect import image_score
-from calib_core.detect.image_score import (ScoreModel, features, fit, fit_logistic, probability,
-                                           reliability_rows, reliability_table)
+from calib_core.detect.image_score import (ScoreModel, features, fit, fit_logistic, logit, probability,
+                                           recalibrate, reliability_rows, reliability_table)
 
 
 def test_fit_logistic_recovers_a_known_model():
@@ -37,21 +37,23 @@ def test_fit_is_calibrated_on_held_out_data():
             assert abs(mean - right) < 0.05, (lo, hi, n, mean, right)
 
 
-def test_platt_line_corrects_an_over_confident_logit():
-    """A model whose logits are twice too large gets a slope near 0.5 from the recalibration."""
+def test_recalibration_corrects_an_over_confident_logit():
+    """Logits twice too large: the Platt line halves them (slope ~0.5, no shift)."""
     rng = np.random.default_rng(2)
     z = rng.normal(0, 2, 5000)
     y = (rng.random(5000) < 1 / (1 + np.exp(-z))).astype(float)
-    ab = fit_logistic((2 * z)[:, None], y, l2=1e-3)
-    assert abs(ab[1] - 0.5) < 0.05 and abs(ab[0]) < 0.1
+    a, b = recalibrate(2 * z, y)
+    assert abs(a - 0.5) < 0.05 and abs(b) < 0.1
 
 
-def test_features_are_capped_where_synthetic_and_real_differ():
-    ex = {"outline_coverage": 0.8, "edge_rms_px": 5.0, "outside_mismatch": 0.1, "edge_contrast": 500.0}
-    f = features(ex, 40.0, 0.9)
-    assert f[1] == image_score.RMS_REL_CAP
-    assert np.isclose(f[3], np.log1p(image_score.CONTRAST_CAP))
-    assert features(dict(ex, edge_contrast=200.0), 10.0, 0.9)[3] == f[3]  # radius not used either
+def test_probability_applies_the_recalibration_to_the_logit():
+    ex = {"outline_coverage": 0.8, "edge_rms_px": 0.4, "outside_mismatch": 0.05, "edge_contrast": 30.0}
+    x = features(ex, 40.0, 0.9)
+    z = logit(x)
+    assert np.isclose(probability(x, 0.0, platt=(1.0, 0.0)), 1 / (1 + np.exp(-z)))
+    a, b = image_score.PLATT
+    assert np.isclose(probability(x, 0.0), 1 / (1 + np.exp(-(a * z + b))))
+    assert a > 0  # monotone: the ranking of the logistic is kept
 
 
 def test_probability_is_monotone_and_bounded():
@@ -63,7 +65,7 @@ def test_probability_is_monotone_and_bounded():
     assert p(dict(ex, edge_contrast=3.0)) < p(ex)
 
 
-def test_score_model_platt_applies_to_the_logit():
+def test_score_model_applies_its_platt_line():
     m = ScoreModel(np.array([0.0, 1.0]), (0.5, 1.0))
     assert np.isclose(m.probability(np.array([2.0])), 1 / (1 + np.exp(-2.0)))
 
