@@ -140,6 +140,10 @@ def main(argv=None) -> int:
     cache = Path(a.cache) / ("quick" if a.quick else "full")
     data = {name: (load(name, make, cache, a.fresh), train) for name, (make, train) in sources(a.quick).items()
             if not a.cached_only or (cache / f"{name}.npy").is_file()}
+    quarters = [k for k in data if k.startswith("sessions-test-")]
+    if quarters:  # one table for the test sessions
+        merged = np.vstack([data.pop(k)[0] for k in quarters])
+        data["sessions-test"] = (merged, False)
     cal = calibration_split(data)
     z_cal = np.array([image_score.logit(x) for x in feature_matrix(cal)])
     y_cal = column(cal, "right")
