@@ -406,7 +406,7 @@ def _cluster_candidates(X: np.ndarray, cid: int, r: float, h: float, voxel: floa
     bloom = float(np.linalg.norm(X.mean(axis=0))) * np.tan(h)
     thr = max(0.2 * r, 0.75 * voxel)
     r_hi = 1.5 * r + 2.0 * bloom + 0.01
-    for _attempt in range(min(MAX_LOOKS, 2 + len(X) // 200)):
+    for _attempt in range(_n_looks(X, r)):
         found = ransac_sphere(X, 0.6 * r, r_hi, thr, 2.5 * r + bloom, rng, n_hyp=N_HYP,
                               r_pref=r + bloom, r_pref_sd=0.25 * r)
         if found is None:
@@ -425,6 +425,13 @@ def _cluster_candidates(X: np.ndarray, cid: int, r: float, h: float, voxel: floa
         if len(X) < 3 * MIN_VOXELS:  # a second sphere in the same cluster needs some room
             break
     return out
+
+
+def _n_looks(X: np.ndarray, r: float) -> int:
+    """RANSAC looks in a cluster: more for a big one (many voxels), and one per ball-sized
+    stretch of a long one (a column, a pole or a person with the ball at its far end: each look
+    takes out a band of it about a diameter long, and the ball is the last to be reached)."""
+    return int(min(MAX_LOOKS, 2 + max(len(X) // 200, int(np.ptp(X, axis=0).max() / (2.0 * r)))))
 
 
 def _candidate(X, shell, ball, c, rf: float, cid: int, r: float, h: float, r_hi: float):
