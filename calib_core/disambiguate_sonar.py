@@ -90,17 +90,19 @@ def seen_counts(candidates_sonar_m: np.ndarray, others: dict[str, np.ndarray], r
 
 
 def choose_by_scenery(candidates_sonar_m: np.ndarray, others: dict[str, np.ndarray],
-                      radius_m: float) -> tuple[int | None, str]:
+                      radius_m: float, static_share: float = STATIC_SHARE,
+                      moving_share: float = MOVING_SHARE) -> tuple[int | None, str]:
     """(index of the target among ``candidates_sonar_m`` or None, the phrase saying why).
 
-    ``others``: {capture_id: (K,3) sightings} of the session's other captures.
+    ``others``: {capture_id: (K,3) sightings} of the session's other captures. The shares
+    default to STATIC_SHARE and MOVING_SHARE (other values: ``bench_sonar_choice.py --entries``).
     """
     n = len(others)
     if n < MIN_OTHERS or len(candidates_sonar_m) < 2:
         return None, ""
     seen = seen_counts(candidates_sonar_m, others, radius_m)
-    static = seen >= max(2, STATIC_SHARE * n)
-    moving = seen <= max(1, MOVING_SHARE * n)
+    static = seen >= max(2, static_share * n)
+    moving = seen <= max(1, moving_share * n)
     if moving.sum() == 1 and (static | moving).all() and seen[~moving].min() >= seen[moving][0] + STATIC_MARGIN:
         k = int(np.flatnonzero(moving)[0])
         return k, scenery_phrase(int(seen[~moving].min()), n)
