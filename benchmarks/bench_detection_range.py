@@ -125,6 +125,38 @@ def capture_table(n: int) -> tuple[list, Counter]:
     return rows, misses
 
 
+GYM_BINS_M = ((1.0, 2.0), (2.0, 3.0))
+
+
+def gym_table(n: int) -> None:
+    """Real data set A's conditions: a 0.60 m ball on a chair seen by a 16-ring LiDAR at 1-3 m
+    (single captures, width estimated from 8 others as a session would): centre error and the
+    diameter seen, per distance band."""
+    r = 0.30
+    est = estimate_beam_width_deg([range_capture(seed, "lidar16", "chair", radius_m=r, near_far_m=(1.0, 3.0))[0]
+                                   for seed in range(8)], r, 1.0)
+    print(f"\nA-like: 0.60 m ball on a chair, 16-ring LiDAR, {n} captures per band; width {est.beam_width_deg:.3f} deg "
+          f"(mm; diameter seen in m, 10-50-90 %)")
+    print(f"{'band m':9} {'found':>7} {'bias':>6} {'along':>6} {'RMS':>6} {'max':>6}   diameter seen")
+    for lo, hi in GYM_BINS_M:
+        errs, along, diam, why = [], [], [], Counter()
+        for seed in range(2000, 2000 + n):
+            P, c, _ = range_capture(seed, "lidar16", "chair", radius_m=r, near_far_m=(lo, hi))
+            det = detect_sphere_in_cloud(P, r, est.beam_width_deg)
+            if not det.found:
+                why[_why(det.reason)] += 1
+                continue
+            errs.append(det.center_sonar_m - c)
+            along.append((det.center_sonar_m - c) @ c / np.linalg.norm(c))
+            diam.append(det.diameter_m if det.diameter_m is not None else np.nan)
+        st = _stats(errs, n, along)
+        q = np.nanpercentile(diam, [10, 50, 90]) if diam else [np.nan] * 3
+        print(f"{lo:.1f}-{hi:.1f} m  {st['found']:3d}/{n:<3d} {st['bias']:6.2f} {st['along']:6.2f} {st['rms']:6.2f} "
+              f"{st['max']:6.2f}   {q[0]:.3f} {q[1]:.3f} {q[2]:.3f}")
+        for w, k in why.items():
+            print(f"  missed {k}: {w}")
+
+
 def _print(title: str, rows: list, misses: Counter) -> None:
     print(f"\n{title}")
     print(f"{'case':14} {'width deg':>11} {'found':>7} {'recall':>7} {'bias':>6} {'along':>6} {'RMS':>6} {'max':>6}")
@@ -244,11 +276,16 @@ def main(argv=None) -> int:
     ap.add_argument("--last", type=int, default=60, help="last seed of the sweep")
     ap.add_argument("--scale", type=float, default=0.5, help="image scale the sweep's sessions are generated at")
     ap.add_argument("--presets", nargs="+", default=list(SWEEP_PRESETS), help="presets of the sweep")
+    ap.add_argument("--gym", type=int, default=0, help="only the A-like table (0.6 m ball on a chair, LiDAR, 1-3 m), N per band")
     ap.add_argument("--dump", type=Path, default=None, help="write the sweep's sonar entries there (JSON)")
     args = ap.parse_args(argv)
     cache = args.cache or Path(tempfile.mkdtemp(prefix="bench_range_"))
     cache.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
+    if args.gym:
+        gym_table(args.gym)
+        print(f"\n({time.perf_counter() - t0:.0f} s; load average {os.getloadavg()[0]:.2f})")
+        return 0
     if args.sweep:
         sweep(cache, args.presets, list(range(args.first, args.last + 1)), args.scale, args.dump)
         print(f"\n({time.perf_counter() - t0:.0f} s; load average {os.getloadavg()[0]:.2f}; cache {cache})")
