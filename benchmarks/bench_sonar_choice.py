@@ -42,7 +42,7 @@ from calib_core.session import load_session  # noqa: E402
 from calib_core.synth.generate import generate_session  # noqa: E402
 from calib_core.synth.ground_truth import load_ground_truth  # noqa: E402
 
-SESSIONS = (("seabed", 49), ("seabed-slab", 60), ("seabed-slab", 51), ("clutter", 57))
+SESSIONS = [("seabed", 49), ("seabed-slab", 60), ("seabed-slab", 51), ("clutter", 57)]
 RIGHT_M = 0.02
 
 
@@ -79,7 +79,11 @@ def main(argv=None) -> int:
     ap.add_argument("--all", action="store_true", help="also every preset of the sweep, seeds 41-60 (slow)")
     ap.add_argument("--entries", type=Path, nargs="+", default=None,
                     help="measure the scenery cue's shares on these dumps of sweep entries instead")
+    ap.add_argument("--sessions", nargs="+", default=None, metavar="PRESET:SEED",
+                    help="these sessions instead of the four of the sweep 41-60 (e.g. carried:62)")
     args = ap.parse_args(argv)
+    if args.sessions:
+        SESSIONS[:] = [(p, int(s)) for p, s in (a.split(":") for a in args.sessions)]
     if args.entries:
         from bench_scenery_shares import shares_tables
 
