@@ -217,7 +217,7 @@ def _sweep_one(root: Path, dump: Path | None = None) -> tuple[list, list, float,
             diam.append(float(e.get("diameter_m") or np.nan) / float(gt["sphere_diameter_m"]))
     if dump is not None:
         dump.mkdir(parents=True, exist_ok=True)
-        keep = ("status", "center", "reason", "two_candidates", "other_candidates", "diameter_m")
+        keep = ("status", "center", "reason", "two_candidates", "other_candidates", "diameter_m", "candidate_evidence")
         rows = {cid: {"target": v["target"], "truth": v["truth"],
                       "sonar": {k: v["entry"][k] for k in keep if k in v["entry"]}} for cid, v in entries.items()}
         (dump / f"{root.name}.json").write_text(json.dumps({"radius_m": data.session.sphere_radius_m, "captures": rows},

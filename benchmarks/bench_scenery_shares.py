@@ -46,6 +46,7 @@ def _cases(paths: list[Path]) -> list[dict]:
                 d = np.linalg.norm(cands - np.asarray(c["truth"], float), axis=1)
                 truth = int(np.argmin(d)) if d.min() <= r else None
             out.append({"session": f.stem, "cid": cid, "kind": kind, "cands": cands, "truth": truth, "r": r,
+                        "evidence": e.get("candidate_evidence"),
                         "others": {o: s for o, s in sights.items() if o != cid}})
     return out
 
@@ -62,6 +63,7 @@ def _settle(case: dict, static: float, moving: float) -> str:
 
 def shares_tables(paths: list[Path]) -> None:
     cases = _cases(paths)
+    evidence_table(cases)
     for kind, title in (("two", "\"two candidates\" refusals"), ("winner", "clear winners re-examined")):
         sub = [c for c in cases if c["kind"] == kind]
         n_truth = sum(c["truth"] is not None for c in sub)
@@ -86,3 +88,19 @@ def shares_tables(paths: list[Path]) -> None:
             if res != "left" or missed:
                 print(f"  {c['session']} {c['cid']}: {res} (truth index {c['truth']}, "
                       f"{len(c['cands'])} candidates, {len(c['others'])} other captures)")
+
+
+def evidence_table(cases: list[dict]) -> None:
+    """For the "two candidates" refusals that recorded their evidence (score x size agreement x
+    scatter, see calib_core.detect.sonar._Judged.evidence): is the best one the target, and by
+    what ratio over the second (CLEAR_WINNER = 3 takes it)."""
+    rows = [c for c in cases if c["kind"] == "two" and c.get("evidence") and c["truth"] is not None]
+    if not rows:
+        return
+    print(f"\n\"two candidates\" refusals with recorded evidence and the target among them: {len(rows)}")
+    print(f"{'session':32} {'cid':4} {'best is target':>14} {'ratio':>6}")
+    for c in rows:
+        ev = np.asarray(c["evidence"], float)
+        order = np.argsort(-ev)
+        ratio = ev[order[0]] / max(ev[order[1]], 1e-12) if len(ev) > 1 else np.inf
+        print(f"{c['session']:32} {c['cid']:4} {str(int(order[0]) == c['truth']):>14} {ratio:6.2f}")

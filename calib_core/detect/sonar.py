@@ -471,7 +471,8 @@ def _choose(judged: list[_Judged], r: float, seed) -> tuple[_Judged | None, dict
         pos = "; ".join(str(np.round(k.fit.center_m, 3).tolist()) for k in nominal[:3])
         return None, {"reason": f"two candidates: round objects of the sphere's size at {at} "
                                 f"(centres {pos} m)", "n_candidates": len(good),
-                      "two_candidates": _centres(nominal)}
+                      "two_candidates": _centres(nominal),
+                      "candidate_evidence": [round(j.evidence(r), 4) for j in nominal]}
     if not nominal:  # sphere-like, but not of session.yaml's size: a decoy or a wrong diameter
         k = max(other, key=lambda j: j.score)
         return None, {"reason": f"only a sphere of another size: seen {2 * k.radius_cone_m:.3f} m across, "
