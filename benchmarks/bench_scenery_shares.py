@@ -64,6 +64,7 @@ def _settle(case: dict, static: float, moving: float) -> str:
 def shares_tables(paths: list[Path]) -> None:
     cases = _cases(paths)
     evidence_table(cases)
+    wrong_centres(paths, cases)
     for kind, title in (("two", "\"two candidates\" refusals"), ("winner", "clear winners re-examined")):
         sub = [c for c in cases if c["kind"] == kind]
         n_truth = sum(c["truth"] is not None for c in sub)
@@ -104,3 +105,22 @@ def evidence_table(cases: list[dict]) -> None:
         order = np.argsort(-ev)
         ratio = ev[order[0]] / max(ev[order[1]], 1e-12) if len(ev) > 1 else np.inf
         print(f"{c['session']:32} {c['cid']:4} {str(int(order[0]) == c['truth']):>14} {ratio:6.2f}")
+
+
+def wrong_centres(paths: list[Path], cases: list[dict]) -> None:
+    """Captures with a target whose entry's centre is more than 2 cm off, per capture and after
+    the scenery cue at the shares in use (the images are not rendered in the sweep)."""
+    wrong, n = [], 0
+    for f in sorted(p for d in paths for p in Path(d).glob("*.json")):
+        for cid, c in json.loads(f.read_text())["captures"].items():
+            e = c["sonar"]
+            n += c["target"]
+            if c["target"] and e.get("center") is not None and \
+                    np.linalg.norm(np.subtract(e["center"], c["truth"])) > 0.02:
+                wrong.append((f.stem, cid))
+    fixed = [(c["session"], c["cid"]) for c in cases
+             if c["kind"] == "winner" and _settle(c, STATIC_SHARE, MOVING_SHARE) == "right"]
+    made = [(c["session"], c["cid"]) for c in cases if _settle(c, STATIC_SHARE, MOVING_SHARE) == "wrong"]
+    after = [w for w in wrong if w not in fixed] + made
+    print(f"\nwrong centres (> 2 cm off) among {n} captures with a target: {len(wrong)} per capture "
+          f"({', '.join(' '.join(w) for w in wrong) or '-'}); after the scenery cue: {len(after)}")
