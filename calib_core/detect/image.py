@@ -2,9 +2,11 @@
 
 Main entry: :func:`detect_sphere_in_image`. Steps:
 
-1. coarse candidates in a downscaled image (:mod:`.image_region`): difference to a background
-   model when there is one, else a colour centre-surround contrast; sizes bounded by the
-   intrinsics, the known radius and plausible ranges;
+1. coarse candidates in a downscaled image: difference to a background model when there is
+   one (:mod:`.image_region`), else round-outline votes (:mod:`.image_votes`), then, when those
+   give no clean outline, a colour centre-surround contrast (:mod:`.image_region`) and discs
+   whose colour stands out from a textured surround (:mod:`.image_discs`); sizes bounded by
+   the intrinsics, the known radius and plausible ranges;
 2. per candidate, full-resolution sub-pixel silhouette edges and a robust fit of the sphere's
    silhouette cone in undistorted normalised coordinates (:mod:`.image_fit`, :mod:`.image_cone`);
    the sphere centre's perspective projection follows exactly from the cone axis (then the lens

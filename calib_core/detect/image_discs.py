@@ -24,61 +24,70 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from calib_core.detect.image_region import Candidate, _box_sum, _counts, _shift, downscale
+from calib_core.detect.image_region import Candidate, _box_sum, _counts, downscale
 
 NOISE_VAR = 25.0  # (Lab units)^2: a spread under ~5 units is image noise, not texture
 MIN_RESPONSE = 0.5  # smallest side distance (in spreads) that makes a candidate
 RADIUS_STEP = 1.25
+PEAKS_PER_RADIUS = 12
 MIN_SIDES = 5  # of the 8 boxes around a disc, at least this many inside the image
 
 
-def _level_stats(lab: np.ndarray, levels: int) -> list[tuple[list[np.ndarray], list[np.ndarray]]]:
-    """Per pyramid level: the Lab planes and their squares (each averaged from the finest)."""
+def _level_stats(lab: np.ndarray, levels: int) -> list[tuple[list[np.ndarray], np.ndarray]]:
+    """Per pyramid level: the Lab planes and the sum of their squares (averaged from the finest)."""
     out = []
-    m, q = lab, lab * lab
+    m, q = lab, np.einsum("ijk,ijk->ij", lab, lab)
     for L in range(levels + 1):
         if L:
             m, q = downscale(m, 2), downscale(q, 2)
-        out.append(([np.ascontiguousarray(m[..., c]) for c in range(3)],
-                    [np.ascontiguousarray(q[..., c]) for c in range(3)]))
+        out.append(([np.ascontiguousarray(m[..., c]) for c in range(3)], np.ascontiguousarray(q)))
     return out
 
 
-def _box_mean_var(planes, squares, kx: int, ky: int, N: np.ndarray):
-    means = [_box_sum(p, kx, ky) / N for p in planes]
-    var = sum(_box_sum(q, kx, ky) / N for q in squares) - sum(m * m for m in means)
-    return means, np.maximum(var, 0.0)
+def _padded_box_sums(arrays, kx: int, ky: int, pad: int) -> list[np.ndarray]:
+    """Box sums (zero outside the image) of each array, zero-padded by ``pad`` on every side:
+    a shifted copy is then a view (see :func:`_at`)."""
+    return [cv2.copyMakeBorder(_box_sum(a, kx, ky), pad, pad, pad, pad, cv2.BORDER_CONSTANT, value=0)
+            for a in arrays]
 
 
-def disc_response(planes: list[np.ndarray], squares: list[np.ndarray], R: float) -> np.ndarray:
+def _at(padded: np.ndarray, dx: int, dy: int, pad: int, shape) -> np.ndarray:
+    """View of a padded array: out[y, x] = original[y + dy, x + dx] (zero outside)."""
+    h, w = shape
+    return padded[pad + dy:pad + dy + h, pad + dx:pad + dx + w]
+
+
+def disc_response(planes: list[np.ndarray], sq: np.ndarray, R: float) -> np.ndarray:
     """Smallest side distance (in colour spreads) of a disc of radius R at every pixel.
 
-    ``planes``/``squares``: Lab channels and their squares (float32 (h, w)) of one level.
-    Boxes reaching out of the image count only where mostly inside; at least three sides
-    must be inside, else the response is 0.
+    ``planes``: Lab channels (float32 (h, w)) of one level; ``sq``: the sum of their squares.
+    The eight boxes around the disc (four sides, four diagonals) count only where mostly inside
+    the image; at least MIN_SIDES must be inside, else the response is 0.
     """
     h, w = planes[0].shape
     hi = max(1, int(round(0.7 * R)))
     ki = max(hi + 1, int(round(1.15 * R)))
     ko = max(ki + 1, int(round(1.5 * R)))
     hx, off = max(1, (ko - ki) // 2), (ki + ko + 1) // 2
-    m_in, v_in = _box_mean_var(planes, squares, hi, hi, np.outer(_counts(h, hi), _counts(w, hi)))
+    n_in = np.outer(_counts(h, hi), _counts(w, hi))
+    m_in = [_box_sum(p, hi, hi) / n_in for p in planes]
+    v_in = np.maximum(_box_sum(sq, hi, hi) / n_in - sum(m * m for m in m_in), 0.0)
     D = np.full((h, w), np.inf, np.float32)
     n_sides = np.zeros((h, w), np.int32)
     diag = int(round(off / np.sqrt(2.0)))
     for kx, ky, shifts in ((hx, hi, ((-off, 0), (off, 0))), (hi, hx, ((0, -off), (0, off))),
                            (hx, hx, ((-diag, -diag), (diag, -diag), (-diag, diag), (diag, diag)))):
         N = np.outer(_counts(h, ky), _counts(w, kx))
-        S = [_box_sum(p, kx, ky) for p in planes]
-        Q = [_box_sum(q, kx, ky) for q in squares]
+        *S, Q, Np = _padded_box_sums(planes + [sq], kx, ky, off) + [
+            cv2.copyMakeBorder(N, off, off, off, off, cv2.BORDER_CONSTANT, value=0)]
         full = (2 * kx + 1) * (2 * ky + 1)
         for dx, dy in shifts:
-            Ns = _shift(N, dx, dy)
-            ok = Ns > 0.4 * full
+            Ns = _at(Np, dx, dy, off, (h, w))
             inv = 1.0 / np.maximum(Ns, 1e-6)
-            ms = [_shift(Si, dx, dy) * inv for Si in S]
-            vs = np.maximum(sum(_shift(Qi, dx, dy) * inv for Qi in Q) - sum(m * m for m in ms), 0.0)
+            ms = [_at(Si, dx, dy, off, (h, w)) * inv for Si in S]
+            vs = np.maximum(_at(Q, dx, dy, off, (h, w)) * inv - sum(m * m for m in ms), 0.0)
             d2 = sum((a - b) ** 2 for a, b in zip(m_in, ms)) / (v_in + vs + NOISE_VAR)
+            ok = Ns > 0.4 * full
             np.minimum(D, np.where(ok, d2, np.inf), out=D)
             n_sides += ok
     D = np.sqrt(D)
@@ -114,6 +123,9 @@ def candidates_by_discs(small_rgb: np.ndarray, s: int, r_bounds_px: tuple[float,
         k = 2 * int(round(0.6 * R / 2 ** L)) + 1
         dil = cv2.dilate(D, cv2.getStructuringElement(cv2.MORPH_RECT, (k, k)))
         ys, xs = np.nonzero((D >= dil) & (D >= min_response))
+        if len(ys) > PEAKS_PER_RADIUS:  # the strongest few per radius are all that can rank
+            top = np.argpartition(-D[ys, xs], PEAKS_PER_RADIUS)[:PEAKS_PER_RADIUS]
+            ys, xs = ys[top], xs[top]
         f = 2 ** L
         peaks += [(float(D[y, x]), float(R), (x + 0.5) * f - 0.5, (y + 0.5) * f - 0.5) for y, x in zip(ys, xs)]
     return _strongest(peaks, s, (h, w), max_candidates)

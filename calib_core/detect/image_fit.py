@@ -173,7 +173,6 @@ def refine_candidate(image: np.ndarray, cam: CameraModel, cand: Candidate, spher
     fit1 = _first_pass(cam, sig, cand, R, band, a_range_rad, rng)
     if not isinstance(fit1, ConeFit):
         return CandidateFit(False, fit1)
-    sig = _covering(sig, image, background, cam, fit1, R)
     # ---- pass 2: along the normals of the fitted silhouette, narrow band (twice when the
     # first pass-2 fit is still rough: clutter drew pass 1 off the outline)
     p2 = _pass2(cam, sig, fit1, R, a_range_rad, rng)
@@ -186,28 +185,6 @@ def refine_candidate(image: np.ndarray, cam: CameraModel, cand: Candidate, spher
     res, outside_bad = _fitted(cam, sig, p2, R, sphere_radius_m)
     _judge(cam, res, R, outside_bad, sig.diff is not None)
     return res
-
-
-# pass 1 may fit an outline larger than the candidate's region (a candidate off-centre on a
-# large sphere sees one arc of it): the region grows to cover an outline up to this many
-# times the candidate's radius (a larger one is another candidate's to find)
-MAX_GROWTH = 1.7
-
-
-def _covering(sig: _Signal, image, background, cam, fit1: ConeFit, R: float) -> _Signal:
-    """The signal over a region that holds the whole pass-1 outline and its pass-2 band."""
-    sil = silhouette_uv(cam, fit1.w, fit1.a_rad, n=90)
-    if not np.isfinite(sil).all():
-        return sig
-    m = max(3.0, 3.0 * fit1.sigma_px + 1.5, 0.02 * R) + 8
-    lo, hi = sil.min(axis=0) - m, sil.max(axis=0) + m
-    if np.max(hi - lo) > 2 * MAX_GROWTH * (1.1 * R + 8):
-        return sig
-    H, W = image.shape[:2]
-    x0, y0, x1, y1 = sig.box
-    box = (max(0, min(x0, int(np.floor(lo[0])))), max(0, min(y0, int(np.floor(lo[1])))),
-           min(W, max(x1, int(np.ceil(hi[0])) + 1)), min(H, max(y1, int(np.ceil(hi[1])) + 1)))
-    return sig if box == tuple(sig.box) else _Signal(image, background, box)
 
 
 def _first_pass(cam, sig: _Signal, cand: Candidate, R: float, band, a_range_rad, rng) -> ConeFit | str:
@@ -313,6 +290,9 @@ def _pass2(cam, sig, fit1: ConeFit, R: float, a_range_rad, rng):
     nrm = outward_normals(sil, sil.mean(axis=0) if np.isfinite(ctr).all() else ctr)
     half = max(3.0, 3.0 * fit1.sigma_px + 1.5, 0.02 * R)
     t2 = np.arange(-half, half + 0.25, 0.5)
+    # a normal whose band leaves the region of interest is not used: the samples there would be
+    # the region's replicated border, not the image (pass 1 can fit a large outline from one
+    # arc of it, seen from a candidate well off its centre)
     inside_img = cam.in_image(sil, margin_px=1.0) & sig.covers(sil, half + 1.0)
     g2 = gradient_magnitude(sig.colour_profiles(sil, nrm, t2), 0.5)
     g2_typ = float(np.median(g2.max(axis=1)[inside_img])) if inside_img.any() else 0.0
