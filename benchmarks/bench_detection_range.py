@@ -276,7 +276,8 @@ def main(argv=None) -> int:
     ap.add_argument("--last", type=int, default=60, help="last seed of the sweep")
     ap.add_argument("--scale", type=float, default=0.5, help="image scale the sweep's sessions are generated at")
     ap.add_argument("--presets", nargs="+", default=list(SWEEP_PRESETS), help="presets of the sweep")
-    ap.add_argument("--gym", type=int, default=0, help="only the A-like table (0.6 m ball on a chair, LiDAR, 1-3 m), N per band")
+    ap.add_argument("--gym", type=int, default=0,
+                    help="only the A-like table (0.6 m ball on a chair, LiDAR, 1-3 m), N per band")
     ap.add_argument("--dump", type=Path, default=None, help="write the sweep's sonar entries there (JSON)")
     args = ap.parse_args(argv)
     cache = args.cache or Path(tempfile.mkdtemp(prefix="bench_range_"))
