@@ -26,7 +26,7 @@ TOL_PX = 3.0
 
 
 def new_flow_stats() -> dict:
-    return {"images": 0, "visible": 0, "right": 0, "wrong": 0, "missed": 0, "used_wrong": 0, "second": 0,
+    return {"images": 0, "visible": 0, "right": 0, "right_visible": 0, "wrong": 0, "missed": 0, "used_wrong": 0, "second": 0,
             "second_right": 0, "miss_reasons": Counter(), "wrong_list": [], "miss_list": [], "s": []}
 
 
@@ -79,6 +79,7 @@ def _judge(st: dict, e: dict, truth: dict, used: bool, name: str, listing: bool)
         off = float(np.hypot(*(np.asarray(e["center"], float) - uv))) if uv is not None else float("nan")
         verdict = "right" if off <= TOL_PX else "wrong"
         st["second_right"] += second and verdict == "right"
+        st["right_visible"] += verdict == "right" and bool(truth.get("visible"))
         if verdict == "wrong":
             st["used_wrong"] += used
             st["wrong_list"].append(f"{name} {off:.1f} px{' (second look)' if second else ''}"
@@ -98,12 +99,12 @@ def _judge(st: dict, e: dict, truth: dict, used: bool, name: str, listing: bool)
 def print_flow_table(rows: dict, seeds, scale: float) -> None:
     print(f"\nImage entries after the session flow (detect_session incl. the sonar-guided second look, "
           f"then calibrate_session), seeds {seeds[0]}-{seeds[-1]}, scale {scale:g}")
-    print("| preset | images | whole ball visible | right (<= 3 px) | recall of visible | wrong | wrong used in a solve "
+    print("| preset | images | whole ball visible | right (<= 3 px; also partly hidden balls) | recall of visible | wrong | wrong used in a solve "
           "| missed (visible) | misses (reason: count) | second-look entries (right) | s/session (median) |")
     print("|---|---|---|---|---|---|---|---|---|---|---|")
     for preset, st in rows.items():
         miss = ", ".join(f"{k}: {v}" for k, v in st["miss_reasons"].most_common()) or "-"
-        rec = 100.0 * st["right"] / max(st["visible"], 1)
+        rec = 100.0 * st["right_visible"] / max(st["visible"], 1)
         print(f"| {preset} | {st['images']} | {st['visible']} | {st['right']} | {rec:.1f} % | {st['wrong']} "
               f"| {st['used_wrong']} | {st['missed']} | {miss} | {st['second']} ({st['second_right']}) "
               f"| {np.median(st['s']):.1f} |")

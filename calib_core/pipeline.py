@@ -214,8 +214,9 @@ def _registration_inputs(detections: dict, cam: str, only: set) -> tuple[dict, d
 
 
 # A look at the predicted place and size needs a registration that most plain detections agree
-# with (a wrong one puts the look on clutter: brick makes outlines of any size), at least this many
-PREDICTION_MIN_SUPPORT = 5
+# with (a wrong one puts the look on clutter, where only the null test of
+# calib_core.detect.image_predicted stands between brick and a "sphere"), at least this many
+PREDICTION_MIN_SUPPORT = 4
 
 
 # a free refit scored this high (or more) is kept over the look at the predicted size
