@@ -6,7 +6,8 @@ bench_scale.py table A (0.3 px, 3 mm, stated correctly).
     .venv/bin/python benchmarks/bench_scale_stereo.py [TRIALS] [N]
 
 Columns: RMS of the relative scale error, median stated sigma, RMS of error / stated sigma (about
-1 when the stereo uncertainty is propagated honestly), pose RMS of cam1.
+1 when the stereo uncertainty is propagated honestly), pose RMS of cam1, the scale's sigma were the stereo exact (what the detections allow, as the
+CLI states it) and how often the CLI says that the stereo transform limits the scale.
 """
 import math
 import os
@@ -22,6 +23,7 @@ from calib_core.solve.refine import Link  # noqa: E402
 from calib_core.solve.rig import solve_rig  # noqa: E402
 from calib_core.solve.simulate import synthetic_rig  # noqa: E402
 from calib_core.solve.single import solve_camera  # noqa: E402
+from calib_core.solve.scale import stereo_limit_note  # noqa: E402
 from calib_core.geometry import pose_error  # noqa: E402
 CASES = [("stated 0.05/1, drawn 0.05/1", (0.05, 1e-3), (0.05, 1e-3)),
          ("stated 0.05/1, exact stereo", (0.05, 1e-3), None),
@@ -43,9 +45,11 @@ def main():
             sols = {c: solve_camera(cdata(rig, c), estimate_scale=False, loo=False) for c in ("cam1", "cam2")}
             rs = solve_rig(sols, {"cam2": Link(T21, stereo_cov(st))}, "cam1", estimate_scale=True)
             e = pose_error(rs.T_cam_sonar["cam1"], rig.T_cam_sonar["cam1"])
-            out.append((rs.scale - 1.02, rs.scale_sigma, math.degrees(e[0]), 1000 * e[1]))
+            out.append((rs.scale - 1.02, rs.scale_sigma, math.degrees(e[0]), 1000 * e[1], rs.scale_sigma_detections,
+                        bool(stereo_limit_note(rs.scale_sigma, rs.scale_sigma_detections, True))))
         a = np.array(out)
-        print(f"N={N} {name:36s} RMS s err {100*rms(a[:,0]):.3f} %  med sigma {100*np.median(a[:,1]):.3f} %  RMS z {rms(a[:,0]/a[:,1]):.2f}  rot {rms(a[:,2]):.3f} t {rms(a[:,3]):.2f}", flush=True)
+        print(f"N={N} {name:36s} RMS s err {100*rms(a[:,0]):.3f} %  med sigma {100*np.median(a[:,1]):.3f} %  RMS z {rms(a[:,0]/a[:,1]):.2f}  rot {rms(a[:,2]):.3f} t {rms(a[:,3]):.2f}  "
+              f"med sigma if stereo exact {100*np.median(a[:,4]):.3f} %  'stereo limits it' said {100*a[:,5].mean():.0f} %", flush=True)
     print(f"load average after: {os.getloadavg()}")
 
 

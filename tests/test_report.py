@@ -151,6 +151,18 @@ def test_report_shows_problems_and_escapes(tmp_path):
     assert "image file not found" in html
 
 
+def test_report_says_how_a_look_alike_was_ruled_out(tmp_path):
+    """A centre singled out among look-alikes says how, escaped, beside its detection."""
+    make_scene_session(tmp_path, n_caps=1)
+    dets = yaml.safe_load((tmp_path / "detections.yaml").read_text())["captures"]
+    dets["p01"]["sonar"].update(resolved_by="static scenery: the other <candidate> stays put",
+                                two_candidates=[[0, 0, 1], [1, 0, 1]])
+    html = build_report(load_session(tmp_path), None, dets)
+    assert "chosen by static scenery: the other &lt;candidate&gt; stays put" in html
+    del dets["p01"]["sonar"]["resolved_by"]
+    assert "chosen by" not in build_report(load_session(tmp_path), None, dets)
+
+
 def test_overlay_segments_the_sphere(scene):
     """The report's overlay comes from the reprojected cloud: the sphere's pixels are tinted."""
     root, truth = scene

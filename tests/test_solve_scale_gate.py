@@ -13,7 +13,7 @@ from calib_core.solve.consistency import NAME, consistency, consistency_phrase
 from calib_core.solve.model import camera_data
 from calib_core.solve.refine import Link
 from calib_core.solve.rig import default_stereo_cov, solve_rig
-from calib_core.solve.scale import SCALE_TEST_ALPHA
+from calib_core.solve.scale import SCALE_TEST_ALPHA, stereo_limit_note
 from calib_core.solve.simulate import synthetic_rig
 from calib_core.solve.single import solve_camera
 
@@ -39,6 +39,19 @@ def test_two_cameras_scale_error_is_estimated_without_a_flag():
     assert math.degrees(dr) < 0.2 and dt < 0.01
     held = joint(rig, False)
     assert held.scale == 1.0 and held.scale_sigma is None and "--no-scale" in held.scale_note
+
+
+def test_the_scale_says_when_the_stereo_transform_limits_it():
+    """With the default stereo uncertainty, the baseline's vergence dominates the scale's sigma
+    (what the detections alone give is much smaller); with a near-exact stereo it does not."""
+    rig = synthetic_rig(12, n_captures=12, scale=1.02)
+    rs = joint(rig, True)
+    assert rs.scale_sigma_detections < 0.7 * rs.scale_sigma
+    assert "the stereo transform limits it" in stereo_limit_note(rs.scale_sigma, rs.scale_sigma_detections, True)
+    sols = {c: solve_camera(cdata(rig, c), estimate_scale=False, loo=False) for c in ("cam1", "cam2")}
+    sharp = solve_rig(sols, {"cam2": Link(rig.T_cam2_cam1, default_stereo_cov() * 1e-4)}, "cam1", estimate_scale=True)
+    assert sharp.scale_sigma < rs.scale_sigma and sharp.scale_sigma_detections > 0.9 * sharp.scale_sigma
+    assert stereo_limit_note(sharp.scale_sigma, sharp.scale_sigma_detections, False) == ""
 
 
 @pytest.mark.parametrize("seed", [13, 14, 15])

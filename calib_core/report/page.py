@@ -21,6 +21,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from calib_core import __version__
+from calib_core.detect.reasons import entry_note
 from calib_core.errors import SessionError
 from calib_core.markup import escape_html
 from calib_core.report.captures import CaptureView, ReportOptions, calibrated_T, capture_view, range_scale
@@ -216,7 +217,9 @@ def _detections(session, detections, views: list[CaptureView]) -> str:
             thumb = f"<img src='{v.thumbs[s]}' alt='{_e(v.id)} {_e(s)}' width='160'><br>" if s in v.thumbs else ""
             res = v.residual_px.get(s)
             res_s = f"<br>residual {math.hypot(*res):.2f} px" if res else ""
-            row.append(f"{thumb}<span class='status-{_e(st)}'>{_e(st)}</span> {_e(cs)}{_e(score)}{res_s}"
+            chosen = (f"<br><span class='muted'>{_e(entry_note(e))}</span>"
+                      if isinstance(e, dict) and c is not None and e.get("resolved_by") else "")
+            row.append(f"{thumb}<span class='status-{_e(st)}'>{_e(st)}</span> {_e(cs)}{_e(score)}{res_s}{chosen}"
                        + (_history(e) if isinstance(e, dict) else ""))
         row.append("<br>".join(f"<span class='bad'>{_e(p)}</span>" for p in v.problems))
         rows.append(row)

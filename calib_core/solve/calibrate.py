@@ -24,7 +24,7 @@ from calib_core.results import CALIBRATION_FORMAT
 from calib_core.solve.consistency import consistency, consistency_phrase, is_warning
 from calib_core.solve.model import camera_data
 from calib_core.solve.refine import ROBUST_LOSSES, Link
-from calib_core.solve.scale import diameter_sigma, outline_sigma_px, range_model, range_rel_sigma
+from calib_core.solve.scale import diameter_sigma, outline_sigma_px, range_model, range_rel_sigma, stereo_limit_note
 from calib_core.solve.shared_scale import shared_scale
 from calib_core.solve.rig import default_stereo_cov, find_stereo, solve_rig, table_i
 from calib_core.solve.single import CameraSolution, solve_camera
@@ -190,7 +190,9 @@ def _joint(session, sols, entries, opts, progress, warnings):
         if c in rs.cov_with_scale:
             entries[c]["covariance_with_scale"] = rs.cov_with_scale[c]
     source = f"joint solve of {' + '.join(rs.cameras)} with the stereo transform"
-    scale = _scale_entry(rs.scale, rs.scale_sigma, rs.scale_sigma is not None, source, rs.scale_note,
+    limit = stereo_limit_note(rs.scale_sigma, rs.scale_sigma_detections,
+                              any(v["covariance_assumed"] for v in stereo_info.values()))
+    scale = _scale_entry(rs.scale, rs.scale_sigma, rs.scale_sigma is not None, source, rs.scale_note + limit,
                          rs.scale_observable, rs.scale_test)
     return joint, scale
 

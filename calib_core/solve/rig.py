@@ -22,7 +22,8 @@ import numpy as np
 
 from calib_core.geometry import invert_T
 from calib_core.solve.model import RigState, per_camera_stats
-from calib_core.solve.refine import Link, RigProblem, pose_covariance, refine
+from calib_core.solve.refine import (Link, RigProblem, covariance_from_jacobian, jacobian, pose_covariance, refine,
+                                     weights_for)
 from calib_core.solve.systematic import systematic_term
 from calib_core.solve.scale import choose_scale, scale_mode
 from calib_core.solve.single import CameraSolution
@@ -69,6 +70,7 @@ class RigSolution:
     cov_with_scale: dict = field(default_factory=dict)
     scale_observable: bool = False
     scale_test: dict | None = None
+    scale_sigma_detections: float | None = None  # the scale's sigma were the stereo transforms exact
 
 
 def solve_rig(solutions: dict[str, CameraSolution], links: dict[str, Link], reference: str,
@@ -92,6 +94,10 @@ def solve_rig(solutions: dict[str, CameraSolution], links: dict[str, Link], refe
     # the stated covariance scaled by the variance factor, plus the model errors common to all captures
     res_c = dataclasses.replace(res, cov=res.cov * max(1.0, vf) + systematic_term(prob, res.state, robust))
     scale_sigma = math.sqrt(res_c.cov[-1, -1]) if ch.estimated else None
+    sigma_det = None
+    if ch.estimated and prob.free_links:
+        var_stereo = stereo_share_of_scale(prob, res.state, robust) * res.cov[-1, -1] * max(1.0, vf)
+        sigma_det = math.sqrt(max(0.0, scale_sigma ** 2 - var_stereo))
     Ts = {n: res.state.T_cam_sonar(n) for n in names}
     covs = {n: pose_covariance(prob, res_c, n) for n in names}
     covs7 = {n: pose_covariance(prob, res_c, n, with_scale=True) for n in names} if prob.estimate_scale else {}
@@ -101,7 +107,24 @@ def solve_rig(solutions: dict[str, CameraSolution], links: dict[str, Link], refe
         rms[n] = float(np.sqrt(np.mean(np.sum(r_px[m] ** 2, axis=1))))
         mah[n] = {cid: float(math.sqrt(v)) if math.isfinite(v) else math.inf for cid, v in zip(cd.capture_ids, m2)}
     return RigSolution(reference, names, Ts, covs, dict(res.state.T_cam_ref), res.state.scale, scale_sigma, note,
-                       rms, res.chi2, res.dof, vf, mah, warnings, covs7, ch.observable, ch.test)
+                       rms, res.chi2, res.dof, vf, mah, warnings, covs7, ch.observable, ch.test, sigma_det)
+
+
+def stereo_share_of_scale(problem: RigProblem, state: RigState, robust: str | None = None) -> float:
+    """Share of the range scale's variance (0-1) that the stereo transforms' stated uncertainty
+    causes: 1 - var(scale | stereo exact) / var(scale), both from the information at ``state``.
+
+    The scale is fixed metrically by the stereo baseline, so an uncertain stereo vergence or
+    baseline length can dominate it; this says when it does."""
+    if not problem.estimate_scale or not problem.free_links:
+        return 0.0
+    held = {n: Link(link.T_cam_ref, None) for n, link in problem.links.items()}
+    exact = RigProblem(problem.cams, problem.masks, held, estimate_scale=True, use_ranges=len(problem.range_rows) > 0)
+    var = []
+    for prob in (problem, exact):
+        Ws, _ = weights_for(prob, state, robust, 2.5)
+        var.append(float(covariance_from_jacobian(jacobian(prob, state, Ws))[0][-1, -1]))
+    return float(np.clip(1.0 - var[1] / var[0], 0.0, 1.0)) if var[0] > 0 else 0.0
 
 
 def find_stereo(stereo: dict, a: str, b: str) -> np.ndarray | None:

@@ -133,6 +133,17 @@ class ScaleChoice:
     res_free: RefineResult | None = None  # the fit with the scale free, when one was made
 
 
+def stereo_limit_note(sigma: float | None, sigma_detections: float | None, assumed: bool) -> str:
+    """"; the stereo transform limits it: ..." when the stereo transforms' uncertainty causes most
+    of the scale's variance (the scale is tied to the stereo baseline), else ""."""
+    if not sigma or sigma_detections is None or sigma_detections ** 2 > 0.5 * sigma ** 2:
+        return ""
+    how = ("its assumed uncertainty (no stereo_covariance in session.yaml)" if assumed else
+           "its stated stereo_covariance")
+    return (f"; the stereo transform limits it: ±{100 * sigma:.2f} % with {how}, ±{100 * sigma_detections:.2f} % "
+            f"were it exact; a sharper stereo calibration, stated as stereo_covariance, sharpens the scale")
+
+
 def lr_test(res_fixed: RefineResult, res_free: RefineResult, systematic_var: float = 0.0) -> dict:
     """F test of s = 1 against s free (see the module doc).
 
