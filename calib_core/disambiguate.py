@@ -50,6 +50,8 @@ class Resolution:
     support: captures with one candidate (a plain detection) that agree with the registration.
     residual_px: RMS distance (px) between those detections and the registration's projection of
         their sonar centres: how far off a prediction may be (NaN without such captures).
+    range_rel_rms: RMS of (registered range / image range - 1) over the same captures: how well
+        the registration predicts the apparent size.
     """
 
     chosen: dict = field(default_factory=dict)
@@ -57,6 +59,7 @@ class Resolution:
     T_cam_sonar: np.ndarray | None = None
     support: int = 0
     residual_px: float = float("nan")
+    range_rel_rms: float = float("nan")
 
 
 def resolve_candidates(cam: CameraModel, centers_sonar_m: dict[str, np.ndarray],
@@ -126,6 +129,8 @@ def _agreement(out: Resolution, cam: CameraModel, ids, X, P, tol, candidates) ->
         uv = cam.project(X_cam)
         d = np.linalg.norm(uv - np.array([np.asarray(candidates[c], float)[0, :2] for c in inl]), axis=1)
         out.residual_px = float(np.sqrt(np.mean(d ** 2)))
+        rel = np.linalg.norm(X_cam, axis=1) / np.array([float(np.asarray(candidates[c], float)[0, 2]) for c in inl]) - 1
+        out.range_rel_rms = float(np.sqrt(np.mean(rel ** 2)))
 
 
 def _ransac(ids: list, X: dict, P: dict, tol: dict, iterations: int, seed: int) -> tuple:

@@ -217,6 +217,10 @@ def _registration_inputs(detections: dict, cam: str, only: set) -> tuple[dict, d
 # with (a wrong one puts the look on clutter, where only the null test of
 # calib_core.detect.image_predicted stands between brick and a "sphere"), at least this many
 PREDICTION_MIN_SUPPORT = 4
+# ... and whose ranges agree with the images' ranges (from the apparent size) to this RMS: the
+# look takes the predicted size as known to a few per cent (image_predicted.PRIOR_REL_SIGMA); with
+# a size 8 % off it finds some balls 3-4 px off (bench_predicted_look.py)
+PREDICTION_MAX_RANGE_RMS = 0.04
 
 
 # a free refit scored this high (or more) is kept over the look at the predicted size
@@ -231,7 +235,8 @@ def _range_agrees(range_m, predicted_m: float) -> bool:
 def _trusted(res, n_with_candidates: int) -> bool:
     """The registration agrees with enough plain detections to predict where to look."""
     return (res.T_cam_sonar is not None and np.isfinite(res.residual_px)
-            and res.support >= max(PREDICTION_MIN_SUPPORT, 0.6 * n_with_candidates))
+            and res.support >= max(PREDICTION_MIN_SUPPORT, 0.6 * n_with_candidates)
+            and res.range_rel_rms <= PREDICTION_MAX_RANGE_RMS)
 
 
 def _look_at_prediction(data: SessionData, cid: str, cam: str, uvr, res, first: dict, hint: dict) -> dict | None:

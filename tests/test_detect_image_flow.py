@@ -143,6 +143,7 @@ def test_registration_reports_its_support_and_scatter():
     res = resolve_candidates(cam, centres, cands, predict_for=["p8"])
     assert res.support == 7
     assert res.residual_px < 15.0
+    assert res.range_rel_rms < 0.03
     u, v, rr = res.predicted_uvr["p8"]
     assert np.hypot(u - uv[8][0], v - uv[8][1]) < 15.0
     assert abs(rr - rng_m[8]) < 0.05 * rng_m[8]
