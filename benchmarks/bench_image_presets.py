@@ -11,6 +11,7 @@ With --negatives each scene is also rendered without the ball (and its holder): 
 there is a false detection, and goes into the reliability table as a wrong one.
 
 Run: .venv/bin/python benchmarks/bench_image_presets.py [--seeds N] [--scale S] [--first K] [--negatives]
+     [--cache DIR]  (rendered cases kept in DIR as .npz: a second run, e.g. of other code, skips rendering)
 """
 
 from __future__ import annotations
@@ -28,14 +29,35 @@ sys.path.insert(0, str(ROOT))
 
 from calib_core.detect.image import detect_sphere_in_image  # noqa: E402
 from calib_core.detect.image_score import reliability_table  # noqa: E402
-from calib_core.synth.image_cases import KINDS, render_case  # noqa: E402
+from calib_core.synth.image_cases import KINDS, ImageCase, render_case  # noqa: E402
 
 TOL_PX = 3.0
+CACHE: Path | None = None
+
+
+def _case(kind, seed, scale, with_ball=True) -> ImageCase:
+    """render_case, through the on-disk cache when one is set (rendering is most of the time)."""
+    if CACHE is None:
+        return render_case(kind, seed, scale, with_ball=with_ball)
+    path = CACHE / f"{kind}_{seed}_{scale:g}_{int(with_ball)}.npz"
+    if path.exists():
+        z = np.load(path, allow_pickle=True)
+        return ImageCase(z["image"], z["cam"].item(), float(z["radius_m"]), z["true_uv_px"],
+                         float(z["radius_px"]), None if z["background"].ndim == 0 else z["background"],
+                         str(z["label"]))
+    case = render_case(kind, seed, scale, with_ball=with_ball)
+    CACHE.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_suffix(".tmp.npz")
+    np.savez(tmp, image=case.image, cam=np.array(case.cam, dtype=object), radius_m=case.radius_m,
+             true_uv_px=case.true_uv_px, radius_px=case.radius_px,
+             background=np.array(None) if case.background is None else case.background, label=case.label)
+    tmp.replace(path)
+    return case
 
 
 def _negatives(kind, seed, scale, st, listing) -> None:
     """The same scene without the ball (and its holder): any detection there is false."""
-    case = render_case(kind, seed, scale, with_ball=False)
+    case = _case(kind, seed, scale, with_ball=False)
     for use_bg in ((True, False) if case.background is not None else (False,)):
         det = detect_sphere_in_image(case.image, case.cam, case.radius_m,
                                      background=case.background if use_bg else None)
@@ -55,7 +77,7 @@ def run(kinds, seeds, scale, listing=False, negatives=False) -> dict:
         for seed in seeds:
             if negatives:
                 _negatives(kind, seed, scale, st, listing)
-            case = render_case(kind, seed, scale)
+            case = _case(kind, seed, scale)
             for use_bg in ((True, False) if case.background is not None else (False,)):
                 t0 = time.perf_counter()
                 det = detect_sphere_in_image(case.image, case.cam, case.radius_m,
@@ -101,7 +123,10 @@ def main(argv=None) -> int:
     ap.add_argument("--list", action="store_true")
     ap.add_argument("--negatives", action="store_true",
                     help="also render each scene without the ball (hard negatives for the reliability table)")
+    ap.add_argument("--cache", type=Path, default=None, help="keep rendered cases here (.npz)")
     a = ap.parse_args(argv)
+    global CACHE
+    CACHE = a.cache
     rows = run(a.kinds.split(","), range(a.first, a.first + a.seeds), a.scale, a.list, a.negatives)
     print_table(rows, a.scale)
     print(reliability_table([x for st in rows.values() for x in st["scored"]],

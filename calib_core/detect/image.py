@@ -2,9 +2,11 @@
 
 Main entry: :func:`detect_sphere_in_image`. Steps:
 
-1. coarse candidates in a downscaled image (:mod:`.image_region`): difference to a background
-   model when there is one, else a colour centre-surround contrast; sizes bounded by the
-   intrinsics, the known radius and plausible ranges;
+1. coarse candidates in a downscaled image: difference to a background model when there is
+   one (:mod:`.image_region`), else round-outline votes (:mod:`.image_votes`), then, when those
+   give no clean outline, a colour centre-surround contrast (:mod:`.image_region`) and discs
+   whose colour stands out from a textured surround (:mod:`.image_discs`); sizes bounded by
+   the intrinsics, the known radius and plausible ranges;
 2. per candidate, full-resolution sub-pixel silhouette edges and a robust fit of the sphere's
    silhouette cone in undistorted normalised coordinates (:mod:`.image_fit`, :mod:`.image_cone`);
    the sphere centre's perspective projection follows exactly from the cone axis (then the lens
@@ -29,6 +31,7 @@ import numpy as np
 from calib_core.camera import CameraModel
 from calib_core.detect.image_fit import CandidateFit, refine_candidate
 from calib_core.detect.image_fit import clean_rms_px
+from calib_core.detect.image_discs import candidates_by_discs
 from calib_core.detect.image_hough import hough_circle
 from calib_core.detect.image_score import features, probability
 from calib_core.detect.image_votes import candidates_by_votes
@@ -262,6 +265,7 @@ def _hint_candidates(cands, hint_uv, hint_r, r_bounds):
 # a fit score (outline share x roundness) below which an accepted outline is ragged or mostly
 # hidden: clutter makes those (chair legs, tiles); the second cue then looks as well
 WEAK_FIT = 0.5
+DISC_CANDIDATES = 6  # colour-distance disc candidates refined when the other cues found nothing
 VOTE_CANDIDATES = 8  # round-outline vote peaks refined (clutter outranks a faint large outline often)
 FAINT_CONTRAST = 10.0  # grey levels: a background-difference outline this faint gets a second look
 
@@ -342,6 +346,12 @@ def _detect_once(image_rgb: np.ndarray, cam: CameraModel, sphere_radius_m: float
         more = _new_candidates(fits, look.contrast_candidates())
         cands = cands + more
         fits += _refine_all(look, _in_order(more, look.max_candidates), False)
+        if not any(f.ok and f.score >= WEAK_FIT for _, f in fits):
+            # third cue: a disc whose colour stands out from a textured surround (a red ball
+            # before red brick), where neither outline votes nor plain contrast put a candidate
+            more = _new_candidates(fits, look.disc_candidates())
+            cands = cands + more
+            fits += _refine_all(look, more[:DISC_CANDIDATES], False)  # best first, border or not
     det = _verdict(look, fits, cands, method, hint_uv_px is not None)
     if det.found:
         det.extras["time_ms"] = round(1e3 * (time.perf_counter() - t0), 2)
@@ -383,6 +393,9 @@ class _Look:
 
     def contrast_candidates(self) -> list[Candidate]:
         return candidates_single_frame(self.small, self.s, self.r_bounds, max_candidates=12)
+
+    def disc_candidates(self) -> list[Candidate]:
+        return candidates_by_discs(self.small, self.s, self.r_bounds, max_candidates=DISC_CANDIDATES)
 
     def refine(self, c: Candidate) -> CandidateFit:
         return refine_candidate(self.img, self.cam, c, self.radius_m, self.a_range, self.bg, self.rng)

@@ -94,7 +94,7 @@ class _Signal:
 
     def __init__(self, image: np.ndarray, background: np.ndarray | None, box):
         x0, y0, x1, y1 = box
-        self.origin = (float(x0), float(y0))
+        self.origin, self.box = (float(x0), float(y0)), box
         self.diff = None
         if background is not None:
             d = cv2.subtract(image[y0:y1, x0:x1].astype(np.float32), background[y0:y1, x0:x1])
@@ -106,6 +106,13 @@ class _Signal:
         else:
             self.img = smooth_roi(image, x0, y0, x1, y1, SMOOTH_SIGMA_PX)
         self._noise = None
+
+    def covers(self, pts: np.ndarray, margin_px: float) -> np.ndarray:
+        """(K,) True where a point and its ``margin_px`` neighbourhood lie in the region (outside
+        it the samples would be the region's replicated border, not the image)."""
+        x0, y0, x1, y1 = self.box
+        return ((pts[:, 0] - margin_px >= x0) & (pts[:, 0] + margin_px <= x1 - 1)
+                & (pts[:, 1] - margin_px >= y0) & (pts[:, 1] + margin_px <= y1 - 1))
 
     @property
     def noise(self) -> float:
@@ -283,7 +290,10 @@ def _pass2(cam, sig, fit1: ConeFit, R: float, a_range_rad, rng):
     nrm = outward_normals(sil, sil.mean(axis=0) if np.isfinite(ctr).all() else ctr)
     half = max(3.0, 3.0 * fit1.sigma_px + 1.5, 0.02 * R)
     t2 = np.arange(-half, half + 0.25, 0.5)
-    inside_img = cam.in_image(sil, margin_px=1.0)
+    # a normal whose band leaves the region of interest is not used: the samples there would be
+    # the region's replicated border, not the image (pass 1 can fit a large outline from one
+    # arc of it, seen from a candidate well off its centre)
+    inside_img = cam.in_image(sil, margin_px=1.0) & sig.covers(sil, half + 1.0)
     g2 = gradient_magnitude(sig.colour_profiles(sil, nrm, t2), 0.5)
     g2_typ = float(np.median(g2.max(axis=1)[inside_img])) if inside_img.any() else 0.0
     # the outline's envelope (outermost edge; open-mesh texture lies inside it) and, without a
