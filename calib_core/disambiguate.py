@@ -64,7 +64,7 @@ class Resolution:
 
 def resolve_candidates(cam: CameraModel, centers_sonar_m: dict[str, np.ndarray],
                        candidates: dict[str, np.ndarray], iterations: int = 400,
-                       seed: int = 0, predict_for=()) -> Resolution:
+                       seed: int = 0, predict_for=(), rough=()) -> Resolution:
     """Pick the target among each capture's image candidates.
 
     Args:
@@ -75,6 +75,8 @@ def resolve_candidates(cam: CameraModel, centers_sonar_m: dict[str, np.ndarray],
         iterations: RANSAC hypotheses (3 captures, one candidate each).
         predict_for: capture ids (with a sonar centre) whose image gave no candidate at all:
             the registration predicts where to look again.
+        rough: capture ids whose one candidate is rough (a partly hidden outline): it takes part
+            in the consensus, but not in the refit of the registration nor in its ``support``.
 
     Returns:
         a :class:`Resolution`: the ambiguous captures (K > 1) that the registration decides
@@ -90,9 +92,10 @@ def resolve_candidates(cam: CameraModel, centers_sonar_m: dict[str, np.ndarray],
     best_T, n_in = _ransac(ids, X, P, tol, iterations, seed)
     if best_T is None or n_in < 4:
         return Resolution()
-    best_T = _refined(cam, best_T, ids, X, P, tol, candidates)
+    plain = [c for c in ids if c not in set(rough)]
+    best_T = _refined(cam, best_T, plain, X, P, tol, candidates)
     out = Resolution(T_cam_sonar=best_T)
-    _agreement(out, cam, ids, X, P, tol, candidates)
+    _agreement(out, cam, plain, X, P, tol, candidates)
     for c in ids:
         _decide(out, cam, c, best_T[:3, :3] @ X[c] + best_T[:3, 3], P[c], tol[c])
     for c in predict_for:

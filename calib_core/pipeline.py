@@ -164,7 +164,7 @@ def _resolve_ambiguous_images(data: SessionData, detections: dict, cam: str, onl
     if not any(cid in only for cid in cands) and not missing:
         return {}
     model = data.camera(cam)
-    res = resolve_candidates(model, centers, cands, predict_for=missing)
+    res = resolve_candidates(model, centers, cands, predict_for=missing, rough=[c for c in missing if c in cands])
     looks = {cid: (tuple(cands[cid][k]), "sonar consistency: the other candidates do not fit one rig transform")
              for cid, k in res.chosen.items()}
     for cid, uvr in res.predicted_uvr.items():
@@ -248,7 +248,8 @@ def _look_at_prediction(data: SessionData, cid: str, cam: str, uvr, res, first: 
     u, v, rng_m = uvr
     model = data.camera(cam)
     radius_px = model.fx * data.session.sphere_radius_m / max(rng_m, 1e-6)
-    # the window: a few times the registration's own scatter on the plain detections
+    # the window: a few times the registration's own scatter on the plain detections (partly
+    # hidden outlines take part in the consensus only: their centres and ranges are rough)
     shift_frac = float(np.clip(3.0 * res.residual_px, 3.0, 0.3 * radius_px) / radius_px)
     image = load_image(data.session.capture(cid).image_paths[cam], (model.width_px, model.height_px))
     det = detect_at_prediction(image, model, data.session.sphere_radius_m, (u, v), radius_px,

@@ -148,3 +148,5 @@ def test_registration_reports_its_support_and_scatter():
     assert np.hypot(u - uv[8][0], v - uv[8][1]) < 15.0
     assert abs(rr - rng_m[8]) < 0.05 * rng_m[8]
     assert "p7" in res.predicted_uvr  # the wrong one: a place to look again
+    # a rough candidate (a partly hidden outline) takes part, but does not count as support
+    assert resolve_candidates(cam, centres, cands, predict_for=["p8"], rough=["p0", "p1"]).support == 5
