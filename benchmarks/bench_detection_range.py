@@ -27,6 +27,7 @@ Targets (issue 11): recall >= 98 %, centre bias < 3 mm for LiDAR and RGB-D.
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import sys
 import tempfile
@@ -124,6 +125,38 @@ def capture_table(n: int) -> tuple[list, Counter]:
     return rows, misses
 
 
+GYM_BINS_M = ((1.0, 2.0), (2.0, 3.0))
+
+
+def gym_table(n: int) -> None:
+    """Real data set A's conditions: a 0.60 m ball on a chair seen by a 16-ring LiDAR at 1-3 m
+    (single captures, width estimated from 8 others as a session would): centre error and the
+    diameter seen, per distance band."""
+    r = 0.30
+    est = estimate_beam_width_deg([range_capture(seed, "lidar16", "chair", radius_m=r, near_far_m=(1.0, 3.0))[0]
+                                   for seed in range(8)], r, 1.0)
+    print(f"\nA-like: 0.60 m ball on a chair, 16-ring LiDAR, {n} captures per band; width {est.beam_width_deg:.3f} deg "
+          f"(mm; diameter seen in m, 10-50-90 %)")
+    print(f"{'band m':9} {'found':>7} {'bias':>6} {'along':>6} {'RMS':>6} {'max':>6}   diameter seen")
+    for lo, hi in GYM_BINS_M:
+        errs, along, diam, why = [], [], [], Counter()
+        for seed in range(2000, 2000 + n):
+            P, c, _ = range_capture(seed, "lidar16", "chair", radius_m=r, near_far_m=(lo, hi))
+            det = detect_sphere_in_cloud(P, r, est.beam_width_deg)
+            if not det.found:
+                why[_why(det.reason)] += 1
+                continue
+            errs.append(det.center_sonar_m - c)
+            along.append((det.center_sonar_m - c) @ c / np.linalg.norm(c))
+            diam.append(det.diameter_m if det.diameter_m is not None else np.nan)
+        st = _stats(errs, n, along)
+        q = np.nanpercentile(diam, [10, 50, 90]) if diam else [np.nan] * 3
+        print(f"{lo:.1f}-{hi:.1f} m  {st['found']:3d}/{n:<3d} {st['bias']:6.2f} {st['along']:6.2f} {st['rms']:6.2f} "
+              f"{st['max']:6.2f}   {q[0]:.3f} {q[1]:.3f} {q[2]:.3f}")
+        for w, k in why.items():
+            print(f"  missed {k}: {w}")
+
+
 def _print(title: str, rows: list, misses: Counter) -> None:
     print(f"\n{title}")
     print(f"{'case':14} {'width deg':>11} {'found':>7} {'recall':>7} {'bias':>6} {'along':>6} {'RMS':>6} {'max':>6}")
@@ -159,8 +192,10 @@ def _sweep_session(cache: Path, preset: str, seed: int, scale: float) -> Path:
     return root
 
 
-def _sweep_one(root: Path) -> tuple[list, list, float, str]:
-    """(errors (m) of the found captures with their truths, refusals, beam width, sensor)."""
+def _sweep_one(root: Path, dump: Path | None = None) -> tuple[list, list, float, str, list]:
+    """(errors (m) of the found captures with their truths, refusals, beam width, sensor,
+    diameters seen over the true one); with ``dump`` the sonar entries and the truths are
+    written there as JSON (for ``bench_sonar_choice.py --entries``)."""
     from calib_core.pipeline import SessionData, detect_sonar_entry, session_beam_width
 
     gt = load_ground_truth(root)
@@ -168,30 +203,40 @@ def _sweep_one(root: Path) -> tuple[list, list, float, str]:
     # as detect_session does for the sonar entries (the images are left out here)
     data.beam_width_deg = session_beam_width(data, [c.id for c in data.session.captures], {})
     width = data.effective_beam_width_deg
-    errs, refused = [], []
+    errs, refused, diam, entries = [], [], [], {}
     for cid, c in gt["captures"].items():
+        e = detect_sonar_entry(data, cid)
+        entries[cid] = {"entry": e, "target": bool(c.get("target")), "truth": c.get("center_sonar_m")}
         if not c.get("target"):
             continue
-        e = detect_sonar_entry(data, cid)
         truth = np.asarray(c["center_sonar_m"], float)
         if e.get("center") is None:
             refused.append((cid, _why(e.get("reason", "?"))))
         else:
             errs.append((np.asarray(e["center"], float) - truth, truth))
-    return errs, refused, width, str(gt["sonar"].get("sensor", "sonar"))
+            diam.append(float(e.get("diameter_m") or np.nan) / float(gt["sphere_diameter_m"]))
+    if dump is not None:
+        dump.mkdir(parents=True, exist_ok=True)
+        keep = ("status", "center", "reason", "two_candidates", "other_candidates", "diameter_m", "candidate_evidence")
+        rows = {cid: {"target": v["target"], "truth": v["truth"],
+                      "sonar": {k: v["entry"][k] for k in keep if k in v["entry"]}} for cid, v in entries.items()}
+        (dump / f"{root.name}.json").write_text(json.dumps({"radius_m": data.session.sphere_radius_m, "captures": rows},
+                                                          default=lambda o: np.asarray(o).tolist()))
+    return errs, refused, width, str(gt["sonar"].get("sensor", "sonar")), diam
 
 
-def sweep(cache: Path, presets, seeds, scale: float) -> None:
+def sweep(cache: Path, presets, seeds, scale: float, dump: Path | None = None) -> None:
     """Table 3: every range preset over ``seeds`` as ``sonarcal detect`` runs it."""
     print(f"\nSweep: range presets, seeds {seeds[0]}-{seeds[-1]}, scale {scale:g}, detected as "
           f"`sonarcal detect` does (mm; width = the session's estimate, deg)")
     print(f"{'preset':12} {'sessions':>8} {'found':>9} {'recall':>7} {'bias':>6} {'along':>6} {'RMS':>6} "
-          f"{'max':>6}  width deg      s")
+          f"{'max':>6}  width deg    diam/true 10-50-90 %      s")
     total, found_all, notes = 0, 0, []
     for preset in presets:
-        t0, errs, along, n, widths, why = time.perf_counter(), [], [], 0, [], Counter()
+        t0, errs, along, n, widths, why, diam = time.perf_counter(), [], [], 0, [], Counter(), []
         for seed in seeds:
-            e, refused, width, sensor = _sweep_one(_sweep_session(cache, preset, seed, scale))
+            e, refused, width, sensor, d = _sweep_one(_sweep_session(cache, preset, seed, scale), dump)
+            diam += d
             n += len(e) + len(refused)
             widths.append(width)
             errs += [d for d, _ in e]
@@ -203,12 +248,22 @@ def sweep(cache: Path, presets, seeds, scale: float) -> None:
         total, found_all = total + n, found_all + st["found"]
         print(f"{preset:12} {len(seeds):8d} {st['found']:4d}/{n:<4d} {st['found'] / max(n, 1):7.1%} "
               f"{st['bias']:6.2f} {st['along']:6.2f} {st['rms']:6.2f} {st['max']:6.2f}  "
-              f"{np.nanmin(widths):.3f}-{np.nanmax(widths):.3f} {time.perf_counter() - t0:6.0f}")
+              f"{np.nanmin(widths):.3f}-{np.nanmax(widths):.3f}  {_pct(diam)}  {time.perf_counter() - t0:6.0f}")
     print("refused or not found:" if notes else "refused or not found: none")
     print("\n".join(notes))
     recall = found_all / max(total, 1)
     print(f"target recall >= {TARGET_RECALL:.0%}: {recall:.1%} ({found_all}/{total}) -> "
           f"{'MET' if recall >= TARGET_RECALL else 'MISSED'}")
+
+
+def _pct(ratios: list) -> str:
+    """10th, 50th and 90th percentiles of the diameter seen over the true one (% off)."""
+    r = np.asarray(ratios, float)
+    r = r[np.isfinite(r)]
+    if not len(r):
+        return f"{'-':>22}"
+    q = (np.percentile(r, [10, 50, 90]) - 1.0) * 100
+    return f"{q[0]:+6.1f} {q[1]:+6.1f} {q[2]:+6.1f}    "
 
 
 def main(argv=None) -> int:
@@ -221,12 +276,19 @@ def main(argv=None) -> int:
     ap.add_argument("--last", type=int, default=60, help="last seed of the sweep")
     ap.add_argument("--scale", type=float, default=0.5, help="image scale the sweep's sessions are generated at")
     ap.add_argument("--presets", nargs="+", default=list(SWEEP_PRESETS), help="presets of the sweep")
+    ap.add_argument("--gym", type=int, default=0,
+                    help="only the A-like table (0.6 m ball on a chair, LiDAR, 1-3 m), N per band")
+    ap.add_argument("--dump", type=Path, default=None, help="write the sweep's sonar entries there (JSON)")
     args = ap.parse_args(argv)
     cache = args.cache or Path(tempfile.mkdtemp(prefix="bench_range_"))
     cache.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
+    if args.gym:
+        gym_table(args.gym)
+        print(f"\n({time.perf_counter() - t0:.0f} s; load average {os.getloadavg()[0]:.2f})")
+        return 0
     if args.sweep:
-        sweep(cache, args.presets, list(range(args.first, args.last + 1)), args.scale)
+        sweep(cache, args.presets, list(range(args.first, args.last + 1)), args.scale, args.dump)
         print(f"\n({time.perf_counter() - t0:.0f} s; load average {os.getloadavg()[0]:.2f}; cache {cache})")
         return 0
     rows, misses = session_table(cache, args.seeds)

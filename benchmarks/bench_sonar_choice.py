@@ -13,6 +13,14 @@ those still refused (after).
 
     .venv/bin/python benchmarks/bench_sonar_choice.py [--cache /tmp/sonar2/sweep]
         [--full-cache /tmp/sonar2/full] [--no-full] [--workers 1]
+
+``--entries DIR [DIR ...]``: instead, the static-scenery cue's thresholds measured on the sonar
+entries ``bench_detection_range.py --sweep --dump DIR`` wrote (many seeds and presets, no
+detection run here): every capture whose entry records two or more round objects of the
+sphere's size ("two candidates", or a clear winner and what it beat) is settled with each
+pair of shares (STATIC_SHARE x MOVING_SHARE) as :mod:`calib_core.disambiguate_sonar` does;
+right = the candidate taken is within a radius of the truth. For the clear winners (third
+table) a change is right when the winner was not the target and the loser taken is.
 """
 
 from __future__ import annotations
@@ -34,7 +42,7 @@ from calib_core.session import load_session  # noqa: E402
 from calib_core.synth.generate import generate_session  # noqa: E402
 from calib_core.synth.ground_truth import load_ground_truth  # noqa: E402
 
-SESSIONS = (("seabed", 49), ("seabed-slab", 60), ("seabed-slab", 51), ("clutter", 57))
+SESSIONS = [("seabed", 49), ("seabed-slab", 60), ("seabed-slab", 51), ("clutter", 57)]
 RIGHT_M = 0.02
 
 
@@ -69,7 +77,18 @@ def main(argv=None) -> int:
     ap.add_argument("--full-cache", type=Path, default=Path("/tmp/sonar2/full"))
     ap.add_argument("--no-full", action="store_true", help="only the blank-image sessions")
     ap.add_argument("--all", action="store_true", help="also every preset of the sweep, seeds 41-60 (slow)")
+    ap.add_argument("--entries", type=Path, nargs="+", default=None,
+                    help="measure the scenery cue's shares on these dumps of sweep entries instead")
+    ap.add_argument("--sessions", nargs="+", default=None, metavar="PRESET:SEED",
+                    help="these sessions instead of the four of the sweep 41-60 (e.g. carried:62)")
     args = ap.parse_args(argv)
+    if args.sessions:
+        SESSIONS[:] = [(p, int(s)) for p, s in (a.split(":") for a in args.sessions)]
+    if args.entries:
+        from bench_scenery_shares import shares_tables
+
+        shares_tables(args.entries)
+        return 0
     print("Blank images (the sweep's sessions): the static-scenery cue only")
     table(lambda p, s: _sweep_session(args.cache, p, s, args.scale), args.workers)
     if args.all:

@@ -15,6 +15,12 @@ buoy, a pipe end). The session can, with two cues, tried in this order:
    image detection (within the loose gate used there), while the others clearly do not, is
    the target.
 
+A clear winner is re-examined the same way (:func:`reexamine_winners`): a cloud where a scenery
+object beat the target (the ball far off, partly seen or noisier than the rock) records the
+target among its ``other_candidates``; when the winner sits where a round object of the
+sphere's size is seen in many other captures, one loser is seen in few, and no camera puts
+the target on the winner, the loser is taken.
+
 When neither cue decides, nothing is chosen and the refusal stays. Pure functions on
 detections.yaml entries; :func:`calib_core.pipeline.detect_session` refits the choice.
 """
@@ -51,6 +57,12 @@ def scenery_phrase(n_seen: int, n_others: int) -> str:
             f"is seen in {n_seen} of {n_others} other captures")
 
 
+def winner_phrase(n_seen: int, n_others: int) -> str:
+    """The ``resolved_by`` text when a clear winner was scenery and a loser was taken."""
+    return (f"static scenery: the round object first chosen sits where one of the sphere's size "
+            f"is seen in {n_seen} of {n_others} other captures; the sphere is the one that moves")
+
+
 def image_phrase(cam: str) -> str:
     """The ``resolved_by`` text of a choice made by camera ``cam``'s image detection."""
     return f"camera {cam}: only this candidate lands on the image's detection (rough rig registration)"
@@ -70,19 +82,27 @@ def sightings_sonar_m(entry: dict | None) -> np.ndarray:
     return np.asarray(rows, float).reshape(-1, 3)
 
 
+def seen_counts(candidates_sonar_m: np.ndarray, others: dict[str, np.ndarray], radius_m: float) -> np.ndarray:
+    """(K,) in how many of ``others``' sightings each candidate has a round object within
+    ``radius_m``."""
+    return np.array([sum(bool(len(o)) and bool(np.min(np.linalg.norm(o - c, axis=1)) <= radius_m)
+                         for o in others.values()) for c in np.asarray(candidates_sonar_m, float)], int)
+
+
 def choose_by_scenery(candidates_sonar_m: np.ndarray, others: dict[str, np.ndarray],
-                      radius_m: float) -> tuple[int | None, str]:
+                      radius_m: float, static_share: float = STATIC_SHARE,
+                      moving_share: float = MOVING_SHARE) -> tuple[int | None, str]:
     """(index of the target among ``candidates_sonar_m`` or None, the phrase saying why).
 
-    ``others``: {capture_id: (K,3) sightings} of the session's other captures.
+    ``others``: {capture_id: (K,3) sightings} of the session's other captures. The shares
+    default to STATIC_SHARE and MOVING_SHARE (other values: ``bench_sonar_choice.py --entries``).
     """
     n = len(others)
     if n < MIN_OTHERS or len(candidates_sonar_m) < 2:
         return None, ""
-    seen = np.array([sum(bool(len(o)) and bool(np.min(np.linalg.norm(o - c, axis=1)) <= radius_m)
-                         for o in others.values()) for c in np.asarray(candidates_sonar_m, float)])
-    static = seen >= max(2, STATIC_SHARE * n)
-    moving = seen <= max(1, MOVING_SHARE * n)
+    seen = seen_counts(candidates_sonar_m, others, radius_m)
+    static = seen >= max(2, static_share * n)
+    moving = seen <= max(1, moving_share * n)
     if moving.sum() == 1 and (static | moving).all() and seen[~moving].min() >= seen[moving][0] + STATIC_MARGIN:
         k = int(np.flatnonzero(moving)[0])
         return k, scenery_phrase(int(seen[~moving].min()), n)
@@ -134,6 +154,36 @@ def choose_sonar_candidates(detections: dict, cams: dict[str, CameraModel], radi
             k, why = _by_images(cands, detections[cid], detections, cams, rigs)
         if k is not None:
             out[cid] = SonarChoice(cands[k], why)
+    return out
+
+
+def winner_and_losers_sonar_m(entry: dict | None) -> np.ndarray:
+    """(K,3) a found entry's centre (row 0) and the ``other_candidates`` it beat; (0,3) when
+    it found nothing or beat nothing."""
+    if not _usable(entry) or entry.get("center") is None or not entry.get("other_candidates"):
+        return np.zeros((0, 3))
+    return np.asarray([entry["center"], *entry["other_candidates"]], float).reshape(-1, 3)
+
+
+def reexamine_winners(detections: dict, cams: dict[str, CameraModel], radius_m: float,
+                      found) -> dict[str, SonarChoice]:
+    """{capture_id: choice} for the captures of ``found`` whose sonar entry chose a clear
+    winner that the static-scenery cue says is scenery while one of the round objects it beat
+    moves; a camera whose image cue singles out another candidate (the winner, say) vetoes."""
+    out: dict[str, SonarChoice] = {}
+    rigs: dict = {}
+    for cid in found:
+        cands = winner_and_losers_sonar_m(detections[cid].get("sonar"))
+        if len(cands) < 2:
+            continue
+        others = {o: sightings_sonar_m(d.get("sonar")) for o, d in detections.items() if o != cid and d.get("sonar")}
+        k, _ = choose_by_scenery(cands, others, radius_m)
+        if not k:  # no choice, or the winner itself
+            continue
+        k_img, _ = _by_images(cands, detections[cid], detections, cams, rigs)
+        if k_img is not None and k_img != k:
+            continue
+        out[cid] = SonarChoice(cands[k], winner_phrase(int(seen_counts(cands[:1], others, radius_m)[0]), len(others)))
     return out
 
 

@@ -128,21 +128,25 @@ def _resolve_ambiguous_sonar(data: SessionData, detections: dict, only: set) -> 
     candidate that the static scenery or the images single out is refitted with the detector
     seeded there (see :mod:`calib_core.disambiguate_sonar`); kept only when the refit finds the
     sphere within a radius of it. {capture_id: new sonar entry}."""
-    from calib_core.disambiguate_sonar import choose_sonar_candidates
+    from calib_core.disambiguate_sonar import choose_sonar_candidates, reexamine_winners
 
-    ambiguous = [cid for cid in only if (e := detections.get(cid, {}).get("sonar")) and e.get("status") == "auto"
-                 and e.get("center") is None and e.get("two_candidates")]
-    if not ambiguous:
+    auto = [(cid, e) for cid in only if (e := detections.get(cid, {}).get("sonar")) and e.get("status") == "auto"]
+    ambiguous = [cid for cid, e in auto if e.get("center") is None and e.get("two_candidates")]
+    winners = [cid for cid, e in auto if e.get("center") is not None and e.get("other_candidates")]
+    if not ambiguous and not winners:
         return {}
     r = data.session.sphere_radius_m
     cams = {name: data.camera(name) for name in data.session.cameras}
+    choices = choose_sonar_candidates(detections, cams, r, ambiguous)
+    choices.update(reexamine_winners(detections, cams, r, winners))
     out = {}
-    for cid, choice in choose_sonar_candidates(detections, cams, r, ambiguous).items():
+    for cid, choice in choices.items():
         entry = detect_sonar_entry(data, cid, seed_center_m=choice.center_sonar_m)
         if entry.get("center") is not None and np.linalg.norm(np.asarray(entry["center"]) - choice.center_sonar_m) <= r:
             seed = [round(float(v), 4) for v in choice.center_sonar_m]
-            entry.update(resolved_by=choice.resolved_by, seed_center_m=seed,
-                         two_candidates=detections[cid]["sonar"]["two_candidates"])
+            old = detections[cid]["sonar"]
+            cands = old.get("two_candidates") or [old["center"], *old["other_candidates"]]
+            entry.update(resolved_by=choice.resolved_by, seed_center_m=seed, two_candidates=cands)
             out[cid] = _with_fingerprint(data, cid, "sonar", entry, {"seed_center_m": seed})
     return out
 

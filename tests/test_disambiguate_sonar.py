@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from calib_core.detect.sonar import detect_sphere_in_cloud
-from calib_core.disambiguate_sonar import choose_by_image, choose_by_scenery, choose_sonar_candidates, image_phrase
+from calib_core.disambiguate_sonar import (choose_by_image, choose_by_scenery, choose_sonar_candidates, image_phrase,
+                                         reexamine_winners, winner_phrase)
 from calib_core.geometry import T_from_rotvec, transform_points
 from calib_core.io.clouds import Cloud, load_cloud, save_cloud
 from calib_core.pipeline import detect_session
@@ -156,3 +157,80 @@ def test_undecidable_refusals_stay():
         dets[f"p{i:02d}"] = {"sonar": {"status": "auto", "center": (rng.uniform(-1, 1, 3) + [0, 0, 2]).tolist()},
                              "cam1": {"status": "auto", "reason": "no round outline"}}
     assert choose_sonar_candidates(dets, {"cam1": tiny_camera()}, R, ["p01"]) == {}
+
+
+# --- a clear winner that is scenery -------------------------------------------------------------
+
+def _winner_dets(target, n_others=6, seed=7):
+    """Detections where p00's clear winner is the rock and the target is what it beat; the other
+    captures found the (moving) target and recorded the rock as the round object they beat."""
+    rng = np.random.default_rng(seed)
+    dets = {"p00": {"sonar": {"status": "auto", "center": (ROCK_SONAR_M + 0.003).tolist(),
+                              "other_candidates": [target.tolist()], "warning": "another round object ..."}}}
+    for i in range(1, n_others + 1):
+        dets[f"p{i:02d}"] = {"sonar": {"status": "auto", "center": (rng.uniform(-1, 1, 3) + [0, 0, 2]).tolist(),
+                                       "other_candidates": [(ROCK_SONAR_M + 0.005 * rng.normal(size=3)).tolist()]}}
+    return dets
+
+
+def test_a_clear_winner_that_is_scenery_gives_way_to_the_target():
+    target = np.array([0.3, 0.0, 1.8])
+    dets = _winner_dets(target)
+    out = reexamine_winners(dets, {}, R, ["p00"])
+    assert np.allclose(out["p00"].center_sonar_m, target)
+    assert out["p00"].resolved_by == winner_phrase(6, 6)
+    # the other captures' winners move: none of them is re-examined into the rock
+    assert reexamine_winners(dets, {}, R, [f"p{i:02d}" for i in range(1, 7)]) == {}
+
+
+def test_a_winner_is_kept_when_the_scenery_cue_cannot_tell():
+    target = np.array([0.3, 0.0, 1.8])
+    dets = _winner_dets(target)
+    # the "loser" is seen as often as the winner (both static): keep the winner
+    for i in range(1, 7):
+        dets[f"p{i:02d}"]["sonar"]["other_candidates"].append(target.tolist())
+    assert reexamine_winners(dets, {}, R, ["p00"]) == {}
+    # too few other captures
+    assert reexamine_winners(_winner_dets(target, n_others=2), {}, R, ["p00"]) == {}
+    # the winner seen in only one other capture: not scenery
+    few = _winner_dets(target)
+    for i in range(2, 7):
+        few[f"p{i:02d}"]["sonar"]["other_candidates"] = []
+    assert reexamine_winners(few, {}, R, ["p00"]) == {}
+
+
+def test_a_camera_that_puts_the_target_on_the_winner_vetoes():
+    cam = tiny_camera(width_px=640, height_px=480)
+    T = np.eye(4)
+    target = np.array([0.3, 0.0, 1.8])
+    dets = _winner_dets(target)
+    for cid, d in dets.items():  # every image detection lands on its sonar entry's winner
+        c = np.asarray(d["sonar"]["center"])
+        d["cam1"] = {"status": "auto", "center": cam.project(c[None])[0].tolist(), "range_m": float(np.linalg.norm(c))}
+    assert reexamine_winners(dets, {"cam1": cam}, R, ["p00"]) == {}
+    # the image on the target instead: the choice stands
+    dets["p00"]["cam1"] = {"status": "auto", "center": cam.project(target[None])[0].tolist(),
+                           "range_m": float(np.linalg.norm(target))}
+    assert np.allclose(reexamine_winners(dets, {"cam1": cam}, R, ["p00"])["p00"].center_sonar_m, target)
+
+
+def test_detect_session_refits_a_scenery_winner_at_the_target(rock_session):
+    """The pipeline's second look: p00's entry says the rock won clearly (as a cloud where the
+    ball is far, partly seen or noisier would); the others recorded the rock; the refit seeded
+    at the target finds the ball in the cloud."""
+    from calib_core.pipeline import SessionData, _resolve_ambiguous_sonar
+
+    s = load_session(rock_session)
+    dets = {}
+    for i, cap in enumerate(s.captures):
+        truth = [0.4 * (i % 3 - 1), 0.1 * (i % 2), 1.6 + 0.2 * i]
+        if i == 0:
+            son = {"center": ROCK_SONAR_M.tolist(), "other_candidates": [truth]}
+        else:
+            son = {"center": truth, "other_candidates": [ROCK_SONAR_M.tolist()]}
+        dets[cap.id] = {"sonar": dict(son, status="auto")}
+    out = _resolve_ambiguous_sonar(SessionData(s), dets, only={c.id for c in s.captures})
+    assert set(out) == {s.captures[0].id}
+    son = out[s.captures[0].id]
+    assert np.linalg.norm(np.asarray(son["center"]) - [-0.4, 0.0, 1.6]) < 0.01
+    assert son["resolved_by"] == winner_phrase(7, 7) and len(son["two_candidates"]) == 2

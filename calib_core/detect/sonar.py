@@ -78,6 +78,7 @@ MAX_RING_SECTORS = 10  # of 16 around the outline continued by a surface: a cap 
 # unless an operator picked it (then fitted with the diameter it shows, with a warning)
 DIAMETER_TOL = 0.15
 ROUGH_NOISE = 1.3  # a first look scattered beyond this x the planes' noise (+2 mm) is tried from other starts
+ROUGH_NOISE_CAP = 0.15  # x radius: the most a crop's local scatter may count as the sensor's noise
 HOLDER_INNER = 0.7  # of the disc's angular radius: returns within it stay in the final fit whatever touches it
 SIZE_GATE = 0.5  # radii from the known-radius sphere: returns further off do not measure its size
 SIZE_SYSTEMATIC = 0.03  # relative: how far off a sensor may see a sphere's size (see _Judged.evidence)
@@ -235,6 +236,9 @@ def _judge(P: np.ndarray, cand: Candidate, r: float, h: float, seeded: bool,
         bad.problem = f"too few returns on the sphere ({len(idx)})"
         return bad
     X = P[idx[idx_j]]
+    if not np.isfinite(noise_m):  # no plane to measure it on: the local scatter of the crop
+        noise_m = _crop_noise(X, r)
+        bad.noise_m = noise_m
     look = _first_look(X, start, r, h, noise_m, bad)
     if look is None:
         return bad
@@ -267,6 +271,18 @@ def _judge(P: np.ndarray, cand: Candidate, r: float, h: float, seeded: bool,
     return _Judged(cand, idx, idx_j, fit, float(r_cone), coverage, purity,
                    _score(coverage, purity, r_cone, r, fit.sigma_m), problem, r_fit,
                    float(sd) if r_fit == r else float("nan"), noise_m)
+
+
+def _crop_noise(X: np.ndarray, r: float) -> float:
+    """The sensor's range noise (m) when the cloud has no plane to measure it on (a depth
+    camera's few returns of a ball far off, a room seen too close for its walls to count):
+    the local range scatter of the crop's returns (:func:`roughness_m`, a median over
+    neighbours, so depth edges count little), at most ROUGH_NOISE_CAP x the radius so that a
+    cloud of scattered returns is not taken for a noisy sphere; NaN with too few returns."""
+    R = np.linalg.norm(X, axis=1)
+    if len(X) < 3 * MIN_INLIERS:
+        return float("nan")
+    return float(min(roughness_m(R, X / R[:, None]), ROUGH_NOISE_CAP * r))
 
 
 def _first_look(X, start, r, h, noise_m, bad: _Judged) -> _FirstLook | None:
@@ -455,7 +471,8 @@ def _choose(judged: list[_Judged], r: float, seed) -> tuple[_Judged | None, dict
         pos = "; ".join(str(np.round(k.fit.center_m, 3).tolist()) for k in nominal[:3])
         return None, {"reason": f"two candidates: round objects of the sphere's size at {at} "
                                 f"(centres {pos} m)", "n_candidates": len(good),
-                      "two_candidates": _centres(nominal)}
+                      "two_candidates": _centres(nominal),
+                      "candidate_evidence": [round(j.evidence(r), 4) for j in nominal]}
     if not nominal:  # sphere-like, but not of session.yaml's size: a decoy or a wrong diameter
         k = max(other, key=lambda j: j.score)
         return None, {"reason": f"only a sphere of another size: seen {2 * k.radius_cone_m:.3f} m across, "

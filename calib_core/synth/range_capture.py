@@ -60,16 +60,18 @@ def in_field(sensor: str, center_sensor_m: np.ndarray, radius_m: float, cfg) -> 
 
 
 def range_capture(seed: int, sensor: str, holder: str, radius_m: float | None = None,
-                  height_m: float | None = None):
-    """(points_sensor_m (N,3), center_sensor_m (3,), radius_m) of one synthetic capture."""
+                  height_m: float | None = None, near_far_m: tuple | None = None):
+    """(points_sensor_m (N,3), center_sensor_m (3,), radius_m) of one synthetic capture;
+    ``near_far_m``: the range of the ball's horizontal distance (m; default 1.2 m to 3.8 m for a
+    depth camera, 4 m otherwise)."""
     rng = np.random.default_rng([int(seed), 4243, SENSORS.index(sensor), range_scenes.HOLDERS.index(holder)])
     cfg = sensor_config(sensor, rng)
     r = float(radius_m if radius_m is not None else rng.uniform(*RADIUS_RANGE_M[sensor]))
     h = float(height_m if height_m is not None else rng.uniform(0.8, 1.3))
     floor_z = -h
-    far = 3.8 if sensor == "rgbd" else 4.0
+    near, far = near_far_m or (1.2, 3.8 if sensor == "rgbd" else 4.0)
     for _ in range(500):
-        d = rng.uniform(1.2, far)
+        d = rng.uniform(near, far)
         az = np.radians(rng.uniform(-25, 25))
         lo, hi = {"stick": (0.5, 1.4), "hand": (0.4, 1.1)}.get(holder, (0.3, 0.8))
         z = floor_z + r + rng.uniform(lo, hi)
