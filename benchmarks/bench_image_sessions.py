@@ -13,7 +13,10 @@ has one (no sonar-guided second look: the image side on its own). Against the gr
 Also the reliability table of the scores (right = within 3 px).
 
 Run: .venv/bin/python benchmarks/bench_image_sessions.py [--presets P ...] [--seeds 41-60]
-     [--scale 0.5] [--cache DIR] [--list]
+     [--scale 0.5] [--cache DIR] [--list] [--flow]
+
+``--flow``: the entries after the whole session flow instead (see ``benchmarks/image_flow.py``):
+right / wrong / wrong used in a solve / missed with reasons / second-look entries.
 """
 
 from __future__ import annotations
@@ -129,10 +132,14 @@ def main(argv=None) -> int:
     ap.add_argument("--scale", type=float, default=0.5)
     ap.add_argument("--cache", default="/tmp/sonarcal-image-sessions", help="folder for generated sessions")
     ap.add_argument("--list", action="store_true")
+    ap.add_argument("--flow", action="store_true",
+                    help="judge the entries after detect_session (with the sonar-guided second look) and the solve")
     a = ap.parse_args(argv)
     seeds = parse_seeds(a.seeds)
     cache = Path(a.cache)
     rows = {}
+    if a.flow:
+        return flow_main(a, seeds, cache)
     for preset in a.presets:
         st = rows[preset] = new_stats()
         for seed in seeds:
@@ -140,6 +147,19 @@ def main(argv=None) -> int:
     print_table(rows, seeds, a.scale)
     print(reliability_table([x for st in rows.values() for x in st["scored"]],
                             "Reliability of the detection score (all presets; right = within 3 px)"))
+    print("load average:", Path("/proc/loadavg").read_text().split()[:3])
+    return 0
+
+
+def flow_main(a, seeds, cache: Path) -> int:
+    from benchmarks.image_flow import new_flow_stats, print_flow_table, run_flow_session
+
+    rows = {}
+    for preset in a.presets:
+        st = rows[preset] = new_flow_stats()
+        for seed in seeds:
+            run_flow_session(session_dir(cache, preset, seed, a.scale), f"{preset} s{seed}", st, a.list)
+    print_flow_table(rows, seeds, a.scale)
     print("load average:", Path("/proc/loadavg").read_text().split()[:3])
     return 0
 

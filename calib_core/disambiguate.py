@@ -47,16 +47,24 @@ class Resolution:
     predicted_uvr: {capture_id: (u_px, v_px, range_m)} where the target must be for captures
         whose candidates all miss the registration or stay undecided: a place to look again.
     T_cam_sonar: the rough registration (4x4), or None.
+    support: captures with one candidate (a plain detection) that agree with the registration.
+    residual_px: RMS distance (px) between those detections and the registration's projection of
+        their sonar centres: how far off a prediction may be (NaN without such captures).
+    range_rel_rms: RMS of (registered range / image range - 1) over the same captures: how well
+        the registration predicts the apparent size.
     """
 
     chosen: dict = field(default_factory=dict)
     predicted_uvr: dict = field(default_factory=dict)
     T_cam_sonar: np.ndarray | None = None
+    support: int = 0
+    residual_px: float = float("nan")
+    range_rel_rms: float = float("nan")
 
 
 def resolve_candidates(cam: CameraModel, centers_sonar_m: dict[str, np.ndarray],
                        candidates: dict[str, np.ndarray], iterations: int = 400,
-                       seed: int = 0, predict_for=()) -> Resolution:
+                       seed: int = 0, predict_for=(), rough=()) -> Resolution:
     """Pick the target among each capture's image candidates.
 
     Args:
@@ -67,6 +75,8 @@ def resolve_candidates(cam: CameraModel, centers_sonar_m: dict[str, np.ndarray],
         iterations: RANSAC hypotheses (3 captures, one candidate each).
         predict_for: capture ids (with a sonar centre) whose image gave no candidate at all:
             the registration predicts where to look again.
+        rough: capture ids whose one candidate is rough (a partly hidden outline): it takes part
+            in the consensus, but not in the refit of the registration nor in its ``support``.
 
     Returns:
         a :class:`Resolution`: the ambiguous captures (K > 1) that the registration decides
@@ -82,16 +92,48 @@ def resolve_candidates(cam: CameraModel, centers_sonar_m: dict[str, np.ndarray],
     best_T, n_in = _ransac(ids, X, P, tol, iterations, seed)
     if best_T is None or n_in < 4:
         return Resolution()
+    plain = [c for c in ids if c not in set(rough)]
+    best_T = _refined(cam, best_T, plain, X, P, tol, candidates)
     out = Resolution(T_cam_sonar=best_T)
+    _agreement(out, cam, plain, X, P, tol, candidates)
     for c in ids:
         _decide(out, cam, c, best_T[:3, :3] @ X[c] + best_T[:3, 3], P[c], tol[c])
     for c in predict_for:
-        if c in centers_sonar_m and c not in candidates:
+        if c in centers_sonar_m and c not in out.predicted_uvr:
             X_cam = best_T[:3, :3] @ np.asarray(centers_sonar_m[c], float) + best_T[:3, 3]
             uv = cam.project(X_cam[None])[0]
             if X_cam[2] > 0 and np.isfinite(uv).all() and cam.in_image(uv[None])[0]:
                 out.predicted_uvr[c] = (float(uv[0]), float(uv[1]), float(np.linalg.norm(X_cam)))
     return out
+
+
+def _single_inliers(T, ids, X, P, tol) -> list:
+    """Captures with one candidate within tolerance of the registered sonar centre."""
+    return [c for c in ids if len(P[c]) == 1
+            and np.linalg.norm(P[c][0] - (T[:3, :3] @ X[c] + T[:3, 3])) <= tol[c][0]]
+
+
+def _refined(cam: CameraModel, T: np.ndarray, ids, X, P, tol, candidates) -> np.ndarray:
+    """The registration refitted on every plain detection it agrees with (>= 4), else as given."""
+    inl = _single_inliers(T, ids, X, P, tol)
+    if len(inl) < 4:
+        return T
+    T2 = _rigid_fit(np.array([X[c] for c in inl]), np.array([P[c][0] for c in inl]))
+    return T if T2 is None else T2
+
+
+def _agreement(out: Resolution, cam: CameraModel, ids, X, P, tol, candidates) -> None:
+    """Fill ``out.support`` and ``out.residual_px`` (see :class:`Resolution`)."""
+    T = out.T_cam_sonar
+    inl = _single_inliers(T, ids, X, P, tol)
+    out.support = len(inl)
+    if inl:
+        X_cam = np.array([T[:3, :3] @ X[c] + T[:3, 3] for c in inl])
+        uv = cam.project(X_cam)
+        d = np.linalg.norm(uv - np.array([np.asarray(candidates[c], float)[0, :2] for c in inl]), axis=1)
+        out.residual_px = float(np.sqrt(np.mean(d ** 2)))
+        rel = np.linalg.norm(X_cam, axis=1) / np.array([float(np.asarray(candidates[c], float)[0, 2]) for c in inl]) - 1
+        out.range_rel_rms = float(np.sqrt(np.mean(rel ** 2)))
 
 
 def _ransac(ids: list, X: dict, P: dict, tol: dict, iterations: int, seed: int) -> tuple:

@@ -135,8 +135,11 @@ def _refusal(fits, cands, method) -> ImageDetection:
     if near:
         best = max(near, key=lambda f: f.support)
         u, v = best.centre_uv_px
+        # the partly hidden outline's centre and range: a candidate for the session's rough rig
+        # registration (calib_core.pipeline), never a detection by itself
         return _not_found(f"{best.reason} at ({u:.0f}, {v:.0f})", method, candidates=len(cands),
-                          rejected=_rejected(fits))
+                          rejected=_rejected(fits), partial_center_uv_px=[round(float(u), 2), round(float(v), 2)],
+                          partial_range_m=round(float(best.range_m), 4))
     return _not_found(NO_OUTLINE, method, candidates=len(cands), rejected=_rejected(fits))
 
 

@@ -41,6 +41,7 @@ class ImageCase:
     radius_px: float
     background: np.ndarray | None
     label: str
+    range_m: float | None = None  # camera to sphere centre
 
 
 def render_case(kind: str, seed: int, scale: float = 0.5, with_ball: bool = True) -> ImageCase:
@@ -131,4 +132,4 @@ def _finish(L, L_bg, cam, T_wc, c, radius, opts, rng, label) -> ImageCase:
     r_px = 0.5 * float(np.max(sil.max(axis=0) - sil.min(axis=0)))
     img = finish_image(L, opts, rng)
     bg = None if L_bg is None else finish_image(L_bg, opts, rng).astype(np.float32)
-    return ImageCase(img, cam, radius, cam.project(C[None])[0], r_px, bg, label)
+    return ImageCase(img, cam, radius, cam.project(C[None])[0], r_px, bg, label, float(np.linalg.norm(C)))
