@@ -21,6 +21,7 @@ import numpy as np
 from calib_core.detect.entries import (SessionData, _as_data, beam_capture_ids, beam_crop_of,  # noqa: F401  (public API)
                                        beam_width_from_crops, detect_image_entry, detect_one, detect_sonar_entry,
                                        estimate_session_beam_width, session_beam_width)
+from calib_core.detect.image_score import from_raw
 from calib_core.detections import is_operator_entry, merge_auto, now_iso
 from calib_core.errors import SessionError
 from calib_core.session import Session
@@ -227,8 +228,9 @@ PREDICTION_MIN_SUPPORT = 4
 PREDICTION_MAX_RANGE_RMS = 0.04
 
 
-# a free refit scored this high (or more) is kept over the look at the predicted size
-CLEAR_SCORE = 0.5
+# a free refit scored this high (or more) is kept over the look at the predicted size: the score
+# model's even odds before its recalibration (0.78 as a recalibrated probability), as it was set
+CLEAR_SCORE = from_raw(0.5)
 
 
 def _range_agrees(range_m, predicted_m: float) -> bool:

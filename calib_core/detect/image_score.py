@@ -62,6 +62,13 @@ def probability(x: np.ndarray, fallback: float, platt: tuple[float, float] | Non
     return float(_sigmoid(a * logit(x) + b))
 
 
+def from_raw(p_raw: float) -> float:
+    """The recalibrated probability of a score the uncorrected logistic put at ``p_raw`` (keeps
+    thresholds set on the old scale meaning the same outlines)."""
+    z = float(np.log(p_raw / (1.0 - p_raw)))
+    return float(_sigmoid(PLATT[0] * z + PLATT[1]))
+
+
 def recalibrate(z: np.ndarray, y: np.ndarray) -> tuple[float, float]:
     """(a, b) of the Platt line: the logistic regression of ``y`` on the logits ``z``."""
     w = fit_logistic(np.asarray(z, float)[:, None], np.asarray(y, float), l2=1e-3)
