@@ -52,6 +52,12 @@ class Resolution:
         their sonar centres: how far off a prediction may be (NaN without such captures).
     range_rel_rms: RMS of (registered range / image range - 1) over the same captures: how well
         the registration predicts the apparent size.
+    checks_px: {capture_id: px} for the rough candidates (partly hidden outlines) that agree with
+        a registration fitted on exactly 3 plain detections: the distance between each outline's
+        centre and the registration's projection (empty unless that case arises).
+    sigma_px: {capture_id: px} for a registration on exactly 3 plain detections: how far its
+        projection of that capture's sonar centre moves when each plain detection's range is off
+        by RANGE_REL_SIGMA (root sum of squares), for the checks and the predicted places.
     """
 
     chosen: dict = field(default_factory=dict)
@@ -60,6 +66,8 @@ class Resolution:
     support: int = 0
     residual_px: float = float("nan")
     range_rel_rms: float = float("nan")
+    checks_px: dict = field(default_factory=dict)
+    sigma_px: dict = field(default_factory=dict)
 
 
 def resolve_candidates(cam: CameraModel, centers_sonar_m: dict[str, np.ndarray],
@@ -94,7 +102,8 @@ def resolve_candidates(cam: CameraModel, centers_sonar_m: dict[str, np.ndarray],
         return Resolution()
     plain = [c for c in ids if c not in set(rough)]
     best_T = _refined(cam, best_T, plain, X, P, tol, candidates)
-    out = Resolution(T_cam_sonar=best_T)
+    best_T, checks_px = _checked_on_three(cam, best_T, plain, [c for c in ids if c in set(rough)], X, P, tol, candidates)
+    out = Resolution(T_cam_sonar=best_T, checks_px=checks_px)
     _agreement(out, cam, plain, X, P, tol, candidates)
     for c in ids:
         _decide(out, cam, c, best_T[:3, :3] @ X[c] + best_T[:3, 3], P[c], tol[c])
@@ -104,7 +113,34 @@ def resolve_candidates(cam: CameraModel, centers_sonar_m: dict[str, np.ndarray],
             uv = cam.project(X_cam[None])[0]
             if X_cam[2] > 0 and np.isfinite(uv).all() and cam.in_image(uv[None])[0]:
                 out.predicted_uvr[c] = (float(uv[0]), float(uv[1]), float(np.linalg.norm(X_cam)))
+    if checks_px:
+        targets = {c: np.asarray(centers_sonar_m[c], float) for c in {*checks_px, *out.predicted_uvr}}
+        out.sigma_px = _three_point_sigma_px(cam, best_T, _single_inliers(best_T, plain, X, P, tol), X, P, targets)
     return out
+
+
+# how far off a plain detection's range (from the whole outline's apparent size) may be, 1 sigma:
+# the registrations on kinectnet's real images agree with the image ranges to 1.1-2.3 % RMS, and
+# that includes the registration's own error (BENCHMARKS.md, sixth round)
+RANGE_REL_SIGMA = 0.015
+
+
+def _three_point_sigma_px(cam: CameraModel, T: np.ndarray, inl, X, P, targets: dict) -> dict:
+    """{capture: px} how far the projection of each target's sonar centre moves when the refit on
+    the 3 plain detections ``inl`` has one of their ranges RANGE_REL_SIGMA off (root sum of
+    squares over the three)."""
+    def project(T_):
+        return {c: cam.project((T_[:3, :3] @ x + T_[:3, 3])[None])[0] for c, x in targets.items()}
+
+    base, sq = project(T), {c: 0.0 for c in targets}
+    for k in inl:
+        T_k = _rigid_fit(np.array([X[c] for c in inl]),
+                         np.array([P[c][0] * (1 + RANGE_REL_SIGMA * (c == k)) for c in inl]))
+        if T_k is None:
+            return {c: float("inf") for c in targets}
+        for c, uv in project(T_k).items():
+            sq[c] += float(np.sum((uv - base[c]) ** 2))
+    return {c: float(np.sqrt(v)) for c, v in sq.items()}
 
 
 def _single_inliers(T, ids, X, P, tol) -> list:
@@ -120,6 +156,32 @@ def _refined(cam: CameraModel, T: np.ndarray, ids, X, P, tol, candidates) -> np.
         return T
     T2 = _rigid_fit(np.array([X[c] for c in inl]), np.array([P[c][0] for c in inl]))
     return T if T2 is None else T2
+
+
+def _checked_on_three(cam: CameraModel, T: np.ndarray, plain, rough, X, P, tol, candidates) -> tuple:
+    """(T refitted on exactly 3 plain detections, {rough capture: px}) when the consensus ``T``
+    agrees with exactly 3 plain detections and at least one rough candidate agrees with that
+    refit; else (T, {}).
+
+    A 3-point 3D-3D registration has no redundancy worth the name: its 3 residuals only check the
+    3 pairwise distances, and a rotation about the line through two of the points (or a range
+    error shared by all three) leaves them small while moving every other prediction. The partly
+    hidden outlines are captures the refit never saw, at other places in the volume, so they test
+    exactly what the prediction is used for: where a fourth sphere lands in the image. They stay
+    out of the refit (their centres are rough; a refit on them put a 3.5 px centre into a solve).
+    """
+    inl = _single_inliers(T, plain, X, P, tol)
+    if len(inl) != 3 or not rough:
+        return T, {}
+    T3 = _rigid_fit(np.array([X[c] for c in inl]), np.array([P[c][0] for c in inl]))
+    if T3 is None or len(_single_inliers(T3, inl, X, P, tol)) != 3:
+        return T, {}
+    agree = _single_inliers(T3, rough, X, P, tol)
+    if not agree:
+        return T, {}
+    uv = cam.project(np.array([T3[:3, :3] @ X[c] + T3[:3, 3] for c in agree]))
+    d = np.linalg.norm(uv - np.array([np.asarray(candidates[c], float)[0, :2] for c in agree]), axis=1)
+    return T3, {c: float(v) for c, v in zip(agree, d)}
 
 
 def _agreement(out: Resolution, cam: CameraModel, ids, X, P, tol, candidates) -> None:

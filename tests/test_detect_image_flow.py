@@ -150,3 +150,63 @@ def test_registration_reports_its_support_and_scatter():
     assert "p7" in res.predicted_uvr  # the wrong one: a place to look again
     # a rough candidate (a partly hidden outline) takes part, but does not count as support
     assert resolve_candidates(cam, centres, cands, predict_for=["p8"], rough=["p0", "p1"]).support == 5
+
+
+def _three_plain_case(rough_off_px: float, range_err: float = 0.002, seed: int = 7):
+    """3 plain detections (0.3 px, ``range_err`` in range), 3 partly hidden outlines
+    ``rough_off_px`` off (and 3 % in range), 2 images with nothing: lidar-chair s45's shape."""
+    rng = np.random.default_rng(seed)
+    cam, X_cam, X_sonar, uv, rng_m = _registration_case(8, rng)
+    ids = [f"p{i}" for i in range(8)]
+    cands = {c: np.array([[*(uv[i] + rng.normal(0, 0.3, 2)), rng_m[i] * (1 + rng.normal(0, range_err))]])
+             for i, c in enumerate(ids[:3])}
+    for i, c in enumerate(ids[3:6], start=3):
+        a = rng.uniform(0, 2 * np.pi)
+        cands[c] = np.array([[*(uv[i] + rough_off_px * np.array([np.cos(a), np.sin(a)])), rng_m[i] * 1.03]])
+    res = resolve_candidates(cam, dict(zip(ids, X_sonar)), cands, predict_for=ids[3:], rough=ids[3:6])
+    return res, uv, ids, len(cands)
+
+
+def _pred_err_px(res, uv, c) -> float:
+    u, v, _ = res.predicted_uvr[c]
+    return float(np.hypot(u - uv[int(c[1:])][0], v - uv[int(c[1:])][1]))
+
+
+def test_three_plain_detections_checked_by_partly_hidden_outlines_are_trusted():
+    from calib_core.pipeline import CHECKED_MAX_ERROR_PX, _expected_error_px, _trusted
+
+    res, uv, ids, n = _three_plain_case(rough_off_px=1.0)
+    assert res.support == 3
+    assert len(res.checks_px) == 3 and max(res.checks_px.values()) < 10.0
+    # before issue 11's seventh round a registration on 3 < 4 plain detections was never trusted
+    trusted = [c for c in ids[3:] if _trusted(res, n, c)]
+    assert trusted
+    for c in trusted:  # where it is trusted, the prediction (fitted on the plain ones only) is good
+        assert _pred_err_px(res, uv, c) < CHECKED_MAX_ERROR_PX
+    for c in ids[3:]:  # and the expected error is not over-optimistic
+        assert _pred_err_px(res, uv, c) < 2.0 * _expected_error_px(res, c) + 1.0
+
+
+def test_three_plain_detections_with_disagreeing_outlines_are_not_trusted():
+    from calib_core.pipeline import _trusted
+
+    res, _, ids, n = _three_plain_case(rough_off_px=12.0)
+    assert res.support == 3
+    assert not any(_trusted(res, n, c) for c in ids[3:])  # outlines within the 3D tolerance but > 10 px off
+
+
+def test_three_plain_detections_with_poor_ranges_are_not_trusted_far_away():
+    from calib_core.pipeline import _trusted
+
+    # ranges 1.5 % off: the 3-point registration is up to 20 px off away from its points; the
+    # outlines' disagreement says so, and only the places where it stays small are looked at
+    trusted, refused = [], 0
+    for seed in range(7, 12):
+        res, uv, ids, n = _three_plain_case(rough_off_px=1.0, range_err=0.015, seed=seed)
+        for c in ids[3:]:
+            if _trusted(res, n, c):
+                trusted.append(_pred_err_px(res, uv, c))
+            else:
+                refused += 1
+    assert trusted and refused >= 10
+    assert max(trusted) < 5.0
