@@ -278,7 +278,7 @@ def _look_at_prediction(data: SessionData, cid: str, cam: str, uvr, res, first: 
     entry = dict(first)
     # a failed look reused from an earlier run already carries the first detection's own reason
     entry["first_reason"] = first.get("first_reason") or first.get("reason")
-    entry["reason"] = det.reason if not det.found else f"outline at the predicted place but at another range ({det.range_m:.2f} m)"
+    entry["reason"] = det.reason if not det.found else f"outline at the predicted place but at another range: {det.range_m:.2f} m"
     return entry
 
 

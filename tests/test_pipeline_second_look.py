@@ -13,6 +13,7 @@ import pytest
 
 from calib_core import disambiguate, pipeline
 from calib_core.camera import CameraModel
+from calib_core.detect.reasons import count_reasons
 from calib_core.detect.types import ImageDetection
 from calib_core.disambiguate import Resolution
 
@@ -75,3 +76,20 @@ def test_a_failed_look_keeps_the_first_detections_own_reason(monkeypatch):
     # the same failed entry, reused by a later run (its fingerprint still matches) and looked at again
     again = pipeline._look_at_prediction(_data(), "c1", "cam1", UVR, res, first, {})
     assert again["reason"] == look and again["first_reason"] == fresh["reason"]
+
+
+def test_a_look_at_another_range_is_counted_under_one_plain_kind(monkeypatch):
+    import calib_core.detect.image_predicted as predicted
+    import calib_core.io.images as images
+
+    monkeypatch.setattr(images, "load_image", lambda path, wh: np.zeros((wh[1], wh[0], 3), np.uint8))
+    res = Resolution(T_cam_sonar=np.eye(4), support=5, residual_px=1.0, range_rel_rms=0.01)
+    reasons = []
+    for rng_m in (3.1, 1.4):  # outlines found at the predicted place, but far off the predicted 2 m
+        monkeypatch.setattr(predicted, "detect_at_prediction", lambda *a, r=rng_m, **k: ImageDetection(
+            found=True, center_uv_px=np.array(UVR[:2]), range_m=r, method="ellipse-exact"))
+        e = pipeline._look_at_prediction(_data(), "c1", "cam1", UVR, res, {"status": "auto", "reason": "no round outline"}, {})
+        assert e.get("center") is None and f"{rng_m:.2f} m" in e["reason"]
+        reasons.append(e["reason"])
+    # the CLI's summary groups reasons by kind: numbers dropped, no stray brackets or units
+    assert count_reasons(reasons) == "outline at the predicted place but at another range: 2"
