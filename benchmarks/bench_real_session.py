@@ -67,6 +67,7 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("session", nargs="?", default=str(DEFAULT_SESSION))
     ap.add_argument("--checks", default=str(DEFAULT_CHECKS))
+    ap.add_argument("--no-scale", action="store_true", help="pass --no-scale to calibrate (range scale held at 1)")
     args = ap.parse_args(argv)
     src = Path(args.session)
     if not (src / "session.yaml").is_file():
@@ -78,7 +79,8 @@ def main(argv=None) -> int:
         shutil.copytree(src, work)
         exe = Path(sys.executable).with_name("sonarcal")
         t0 = time.perf_counter()
-        proc = subprocess.run([str(exe), "calibrate", str(work), "--quiet"], capture_output=True, text=True)
+        cmd = [str(exe), "calibrate", str(work), "--quiet"] + (["--no-scale"] if args.no_scale else [])
+        proc = subprocess.run(cmd, capture_output=True, text=True)
         wall = time.perf_counter() - t0
         if proc.returncode != 0:
             print(f"calibrate failed (exit {proc.returncode}): {proc.stderr.strip().splitlines()[-1:]}")

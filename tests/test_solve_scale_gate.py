@@ -13,7 +13,7 @@ from calib_core.solve.consistency import NAME, consistency, consistency_phrase
 from calib_core.solve.model import camera_data
 from calib_core.solve.refine import Link
 from calib_core.solve.rig import default_stereo_cov, solve_rig
-from calib_core.solve.scale import SCALE_TEST_ALPHA, stereo_limit_note
+from calib_core.solve.scale import SCALE_TEST_ALPHA, size_route_caution, stereo_limit_note
 from calib_core.solve.simulate import synthetic_rig
 from calib_core.solve.single import solve_camera
 
@@ -146,3 +146,12 @@ def test_closed_form_leave_one_out_agrees_with_refits():
     for i, r in ref.items():
         for k in ("residual_px", "mahalanobis", "shift_deg", "shift_mm"):
             assert lin[i][k] == pytest.approx(r[k], rel=0.02, abs=1e-3)
+
+
+def test_a_far_apparent_size_scale_is_applied_with_a_caution():
+    """The apparent-size route reads a focal-length error as a scale error: a scale further from
+    1 than a sound-speed error gives is still applied, but the note says to check the intrinsics."""
+    assert "check the cameras' intrinsics" in size_route_caution(1.061, True)
+    assert "6.1 % from 1" in size_route_caution(1.061, True)
+    assert "check the cameras' intrinsics" in size_route_caution(0.95, True)
+    assert size_route_caution(1.02, True) == "" and size_route_caution(1.061, False) == ""

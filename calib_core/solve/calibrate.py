@@ -24,7 +24,8 @@ from calib_core.results import CALIBRATION_FORMAT
 from calib_core.solve.consistency import consistency, consistency_phrase, is_warning
 from calib_core.solve.model import camera_data
 from calib_core.solve.refine import ROBUST_LOSSES, Link
-from calib_core.solve.scale import diameter_sigma, outline_sigma_px, range_model, range_rel_sigma, stereo_limit_note
+from calib_core.solve.scale import (diameter_sigma, outline_sigma_px, range_model, range_rel_sigma, size_route_caution,
+                                   stereo_limit_note)
 from calib_core.solve.shared_scale import shared_scale
 from calib_core.solve.rig import default_stereo_cov, find_stereo, solve_rig, table_i
 from calib_core.solve.single import CameraSolution, solve_camera
@@ -206,8 +207,9 @@ def _single_scale(session, sols: dict, n_cams: int, opts) -> dict:
         source = f"{only.name} alone"
         if only.scale_observable:
             source = f"{only.name}: sphere ranges from its apparent size ({_range_systematics(session)})"
+        caution = size_route_caution(only.scale, only.scale_sigma is not None) if only.scale_observable else ""
         entry = _scale_entry(only.scale, only.scale_sigma, only.scale_sigma is not None, source,
-                             only.scale_note, only.scale_observable, only.scale_test)
+                             only.scale_note + caution, only.scale_observable, only.scale_test)
         if (only.scale_test or {}).get("outline_bias"):
             entry["outline_bias"] = {only.name: only.scale_test["outline_bias"]}
         return entry
@@ -244,7 +246,8 @@ def _shared(session, sols: dict, opts) -> dict | None:
         return None
     source = (f"{' + '.join(sh.per_camera)}: sphere ranges from its apparent size, one scale for all "
               f"({_range_systematics(session)})")
-    entry = _scale_entry(sh.value, sh.sigma if sh.estimated else None, sh.estimated, source, sh.note, True, sh.test)
+    entry = _scale_entry(sh.value, sh.sigma if sh.estimated else None, sh.estimated, source,
+                         sh.note + size_route_caution(sh.value, sh.estimated), True, sh.test)
     entry["per_camera"] = sh.per_camera
     outlines = {c: v["outline_bias"] for c, v in sh.per_camera.items() if "outline_bias" in v}
     if outlines:

@@ -133,6 +133,20 @@ class ScaleChoice:
     res_free: RefineResult | None = None  # the fit with the scale free, when one was made
 
 
+# Sound-speed errors in water rarely exceed about 3 % (1450-1550 m/s against an assumed 1500 m/s)
+SIZE_ROUTE_PLAUSIBLE = 0.03
+
+
+def size_route_caution(value: float, estimated: bool) -> str:
+    """"; a scale 6.1 % from 1 ..." when the sphere's apparent size puts the scale further from 1
+    than a sound-speed error usually does: a camera's focal length off by as much reads the same."""
+    if not estimated or abs(value - 1.0) <= SIZE_ROUTE_PLAUSIBLE:
+        return ""
+    return (f"; caution: a scale {100 * abs(value - 1.0):.1f} % from 1 is more than a sound-speed error usually "
+            f"gives, and the apparent-size route reads a focal length off by as much the same way: check the "
+            f"cameras' intrinsics, or hold it with --no-scale")
+
+
 def stereo_limit_note(sigma: float | None, sigma_detections: float | None, assumed: bool) -> str:
     """"; the stereo transform limits it: ..." when the stereo transforms' uncertainty causes most
     of the scale's variance (the scale is tied to the stereo baseline), else ""."""
