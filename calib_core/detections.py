@@ -92,7 +92,12 @@ def _numbers(v, n: int) -> bool:
 
 
 def _check_geometry(path: Path, what: str, e: dict) -> None:
-    """Validate (and make floats of) the geometry extras of one entry, in place."""
+    """Validate (and make floats of) the geometry extras (and the score) of one entry, in place."""
+    v = e.get("score")
+    if v is not None:  # every shell formats it as a number
+        if not (_finite_number(v) or (isinstance(v, float) and math.isnan(v))):
+            raise SessionError(path, f"{what}.score must be a number, got {short_repr(v)}")
+        e["score"] = float(v)
     for key in _RANGE_KEYS:
         if e.get(key) is not None:
             if not (_finite_number(e[key]) and float(e[key]) > 0):

@@ -82,6 +82,7 @@ def test_round_trip_with_numpy_values_in_manifest_order(session):
      "other_candidates must be a list of rows"),
     ({"p01": {"sonar": {"status": "auto", "center": [0, 0, 1], "other_candidates": [[0, 0, ".nan"]]}}},
      "other_candidates must be a list of rows"),
+    ({"p01": {"cam1": {"status": "auto", "center": [1, 2], "score": "high"}}}, "score must be a number"),
 ])
 def test_invalid_entries(session, captures, match):
     detections_path(session).write_text(yaml.safe_dump({"format": DETECTIONS_FORMAT, "captures": captures}))
