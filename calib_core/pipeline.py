@@ -212,9 +212,17 @@ def _looks(res, cands: dict, missing: list, detections: dict, cam: str, only: se
              for cid, k in res.chosen.items()}
     for cid, uvr in res.predicted_uvr.items():
         if cid in only and detections[cid][cam].get("status") == "auto":
-            first = "found nothing" if cid in missing else "did not fit the rig transform"
-            looks[cid] = (uvr, f"sonar-guided second look: the first detection {first}")
+            looks[cid] = (uvr, f"sonar-guided second look: the first detection {_first_outcome(cid, cands, missing)}")
     return looks
+
+
+def _first_outcome(cid: str, cands: dict, missing: list) -> str:
+    """What the first detection of a capture the registration sends back to look again saw."""
+    if cid in missing:
+        return "found only a partly hidden outline" if cid in cands else "found nothing"
+    if len(cands.get(cid, ())) > 1:
+        return "saw two round objects, and the registration could not tell them apart"
+    return "did not fit the rig transform"
 
 
 def _registration_inputs(detections: dict, cam: str, only: set) -> tuple[dict, dict, list]:
@@ -337,8 +345,9 @@ def _look_at_prediction(data: SessionData, cid: str, cam: str, uvr, res, first: 
     if first.get("center") is not None:
         return None  # a detection that does not fit the registration stays for the solver to judge
     entry = dict(first)
-    entry["first_reason"] = first.get("first_reason", first.get("reason"))
-    entry["reason"] = det.reason if not det.found else f"outline at the predicted place but at another range ({det.range_m:.2f} m)"
+    # a failed look reused from an earlier run already carries the first detection's own reason
+    entry["first_reason"] = first.get("first_reason") or first.get("reason")
+    entry["reason"] = det.reason if not det.found else f"outline at the predicted place but at another range: {det.range_m:.2f} m"
     return entry
 
 

@@ -70,6 +70,21 @@ def test_red_ball_before_red_brick_is_a_disc_candidate_and_found():
     assert np.hypot(*(det.center_uv_px - centre)) < 1.5
 
 
+def test_the_disc_cue_looks_when_the_other_cues_propose_nothing_at_all(monkeypatch):
+    # outline votes and region contrast with no candidate at all (not even a ragged one): the
+    # third cue must still look, as it does when they propose only clutter
+    import calib_core.detect.image as image
+
+    monkeypatch.setattr(image, "candidates_by_votes", lambda *a, **k: [])
+    monkeypatch.setattr(image, "candidates_single_frame", lambda *a, **k: [])
+    rng = np.random.default_rng(11)
+    centre, r = (371.3, 212.6), 46.0
+    img = _finish(_with_disc(_brick(rng), centre, r, (185, 48, 36)), rng)
+    det = detect_sphere_in_image(img, _cam(), 0.2)
+    assert det.found, det.reason
+    assert np.hypot(*(det.center_uv_px - centre)) < 1.5
+
+
 def test_plain_texture_gives_no_strong_disc():
     rng = np.random.default_rng(13)
     img = _finish(_brick(rng), rng)

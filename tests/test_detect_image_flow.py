@@ -94,6 +94,25 @@ def test_no_ball_behind_the_prediction_is_not_found():
     assert WHERE in det.reason
 
 
+def test_a_prediction_across_the_border_that_shows_no_outline_is_cut_not_missing():
+    # the sonar puts the ball half out of the frame and the part inside is too faint to see: the
+    # operator reads "cut by the image border", as from the free search, not "no round outline"
+    rng = np.random.default_rng(3)
+    cam = _cam()
+    C = (2.05, 0.0, 3.0)  # the centre just inside the right edge
+    uv, r = _truth(cam, C)
+    assert uv[0] < cam.width_px and uv[0] + r > cam.width_px
+    img = _finish(_draw_ball(np.full((cam.height_px, cam.width_px, 3), 120.0, np.float32), cam, C, (121, 121, 121)), rng)
+    det = detect_at_prediction(img, cam, RADIUS_M, uv, r, shift_frac=0.1)
+    assert not det.found
+    assert det.reason == f"sphere cut by the image border {WHERE}"
+    # the same faint ball wholly inside the frame: nothing round there
+    C_in = (0.3, 0.0, 3.0)
+    uv, r = _truth(cam, C_in)
+    img = _finish(_draw_ball(np.full((cam.height_px, cam.width_px, 3), 120.0, np.float32), cam, C_in, (121, 121, 121)), rng)
+    assert detect_at_prediction(img, cam, RADIUS_M, uv, r, shift_frac=0.1).reason == f"no round outline {WHERE}"
+
+
 @pytest.mark.parametrize("dx", [-2.0, 0.0, 1.5, 3.0])
 def test_brick_wall_makes_no_sphere_at_the_prediction(dx):
     # brick: a circle of the predicted size meets mortar edges on many normals anywhere; the

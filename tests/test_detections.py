@@ -71,6 +71,18 @@ def test_round_trip_with_numpy_values_in_manifest_order(session):
     ({"p01": {"cam1": {"status": "accepted", "center": ["1e3", "x"]}}}, "center must be 2 finite"),
     ({"p01": {"cam1": {"status": ["auto"]}}}, "is not one of"),
     ([1, 2], "'captures' must map"),
+    # geometry extras the sonar-guided looks read back: a broken hand edit is named, not a traceback
+    ({"p01": {"cam1": {"status": "auto", "partial_center_uv_px": [1, 2, 3], "partial_range_m": 2}}},
+     "partial_center_uv_px must be 2 finite"),
+    ({"p01": {"cam1": {"status": "auto", "partial_center_uv_px": [1, 2], "partial_range_m": "far"}}},
+     "partial_range_m must be a positive number"),
+    ({"p01": {"cam1": {"status": "accepted", "center": [1, 2], "range_m": 0}}}, "range_m must be a positive"),
+    ({"p01": {"cam1": {"status": "auto", "two_candidates": [[1, 2], [3, 4]]}}}, "two_candidates must be a list of rows"),
+    ({"p01": {"sonar": {"status": "accepted", "center": [0, 0, 1], "other_candidates": [0.1, 0.2, 1.0]}}},
+     "other_candidates must be a list of rows"),
+    ({"p01": {"sonar": {"status": "auto", "center": [0, 0, 1], "other_candidates": [[0, 0, ".nan"]]}}},
+     "other_candidates must be a list of rows"),
+    ({"p01": {"cam1": {"status": "auto", "center": [1, 2], "score": "high"}}}, "score must be a number"),
 ])
 def test_invalid_entries(session, captures, match):
     detections_path(session).write_text(yaml.safe_dump({"format": DETECTIONS_FORMAT, "captures": captures}))
@@ -119,3 +131,13 @@ def test_now_iso_is_utc():
 def test_hand_written_exponents_are_numbers(session):
     detections_path(session).write_text("captures:\n  p01:\n    cam1: {center: [1e3, 2E-1], status: corrected}\n")
     assert load_detections(session)["p01"]["cam1"]["center"] == [1000.0, 0.2]
+
+
+def test_geometry_extras_written_by_the_tools_read_back(session):
+    caps = {"p01": {"cam1": {"status": "auto", "reason": "outline 40 % hidden", "partial_center_uv_px": [10, 12.5],
+                             "partial_range_m": "2e0", "two_candidates": [[1, 2, 3.5], [4, 5, 1.5]]},
+                    "sonar": {"status": "auto", "center": [0, 0, 1], "other_candidates": [[0.5, 0, 2]]}}}
+    detections_path(session).write_text(yaml.safe_dump({"format": DETECTIONS_FORMAT, "captures": caps}))
+    d = load_detections(session)["p01"]
+    assert d["cam1"]["partial_range_m"] == 2.0 and d["cam1"]["two_candidates"][1] == [4.0, 5.0, 1.5]
+    assert d["sonar"]["other_candidates"] == [[0.5, 0.0, 2.0]]

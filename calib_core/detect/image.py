@@ -337,8 +337,8 @@ def _detect_once(image_rgb: np.ndarray, cam: CameraModel, sphere_radius_m: float
                  max_candidates, np.random.default_rng(seed))
     cands = look.first_candidates(hint_uv_px)
     t_region = time.perf_counter()
-    if not cands:
-        return _not_found(NO_OUTLINE, method, candidates=0)
+    if not cands and (hint_uv_px is not None or background is not None):
+        return _not_found(NO_OUTLINE, method, candidates=0)  # (without them, the later cues still look)
     fits = _refine_all(look, _in_order(cands, look.max_candidates), hint_uv_px is not None)
     if hint_uv_px is None and background is None and not any(f.ok and f.score >= WEAK_FIT for _, f in fits):
         # no clear round outline among the votes (none, or only ragged ones: clutter): region

@@ -26,13 +26,15 @@ import numpy as np
 from calib_core.camera import CameraModel
 from calib_core.detect.image_cone import (ConeFit, centre_uv_and_cov, normalize_near, orthonormal_basis,
                                           px_per_rad, rays_from_xy, silhouette_uv, silhouette_xy)
-from calib_core.detect.image import prepare_background
+from calib_core.detect.image import CUT, NO_OUTLINE, prepare_background
 from calib_core.detect.image_edges import gradient_magnitude, outward_normals
 from calib_core.detect.image_fit import (CORR_LENGTH_PX, EDGE_NOISE_FACTOR, EDGE_SPACING_PX, SYS_FRACTION, _Signal,
                                          clean_rms_px)
 from calib_core.detect.types import ImageDetection
 
 WHERE = "near the sonar's prediction"
+NO_OUTLINE_HERE = f"{NO_OUTLINE} {WHERE}"  # the free search's phrases, said of the predicted place
+CUT_HERE = f"{CUT} {WHERE}"
 # least share of the outline that must be seen on the fitted circle (about half may be hidden
 # by the chair, a hand, low contrast; a third still fixes the centre when the size is known)
 MIN_SUPPORT = 0.35
@@ -168,6 +170,8 @@ def detect_at_prediction(image: np.ndarray, cam: CameraModel, sphere_radius_m: f
     ``radius_px``), the centre within ``shift_frac`` radii of the prediction; found, or why not."""
     H, W = image.shape[:2]
     w0, a0 = predicted_cone(cam, uv_px, radius_px)
+    # nothing found where the predicted outline crosses the border: the ball is cut, not missing
+    nothing = NO_OUTLINE_HERE if cam.in_image(silhouette_uv(cam, w0, a0, n=64), margin_px=1.0).all() else CUT_HERE
     R = float(radius_px)
     shift = max(3.0, shift_frac * R)
     band = shift + NULL_SHIFT * R + 2.0  # the edges of the outline and of the null circles
@@ -175,7 +179,7 @@ def detect_at_prediction(image: np.ndarray, cam: CameraModel, sphere_radius_m: f
     box = (max(0, int(uv_px[0]) - m), max(0, int(uv_px[1]) - m), min(W, int(uv_px[0]) + m + 1),
            min(H, int(uv_px[1]) + m + 1))
     if box[2] - box[0] < 8 or box[3] - box[1] < 8:
-        return _not_found(f"no round outline {WHERE}")
+        return _not_found(nothing)
     sig = _Signal(image, None if background is None else prepare_background(background).image, box)
     pts, normal_of, k, _ = edge_points(cam, sig, w0, a0, band)
     # in the plane tangent to the predicted axis the outline is a circle of radius fx tan(a)
@@ -185,13 +189,13 @@ def detect_at_prediction(image: np.ndarray, cam: CameraModel, sphere_radius_m: f
     Rq = cam.fx * np.tan(a0)
     circ = best_circle(q, np.zeros(2), Rq, shift * Rq / R, np.random.default_rng(seed))
     if circ is None or circ[1] < 0.15 * k:
-        return _not_found(f"no round outline {WHERE}", looked_at=[round(float(x), 1) for x in uv_px])
+        return _not_found(nothing, looked_at=[round(float(x), 1) for x in uv_px])
     keep = _nearest_per_normal(q, normal_of, circ[0], Rq)
     xy = xy_all[keep]
     w1 = w0 + (circ[0][0] * e1 + circ[0][1] * e2) / cam.fx
     fit = fit_cone_with_prior(cam, xy, w1 / np.linalg.norm(w1), a0, corr_points=CORR_LENGTH_PX / EDGE_SPACING_PX)
     if fit is None:
-        return _not_found(f"no round outline {WHERE}")
+        return _not_found(nothing)
     support = float(fit.inliers.sum()) / max(k, 1)
     det = _verdict(cam, fit, support, k, R, sphere_radius_m, uv_px)
     null = _null_support(cam, q, normal_of, k, fit, w0, e1, e2)
@@ -223,7 +227,7 @@ def _verdict(cam, fit: ConeFit, support: float, k: int, R: float, sphere_radius_
     extras = {"support": round(support, 4), "edge_rms_px": round(float(fit.sigma_px), 4),
               "prediction_uv_px": [round(float(x), 2) for x in uv_px], "prediction_radius_px": round(R, 2)}
     if not cam.in_image(sil, margin_px=1.0).all():
-        return _not_found(f"sphere cut by the image border {WHERE}", **extras)
+        return _not_found(CUT_HERE, **extras)
     if fit.sigma_px > clean_rms_px(R):
         return _not_found(f"outline not round (edge RMS {fit.sigma_px:.1f} px) {WHERE} {where}", **extras)
     if support < MIN_SUPPORT:
