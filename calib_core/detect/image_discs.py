@@ -24,7 +24,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from calib_core.detect.image_region import Candidate, _box_sum, _counts, downscale
+from calib_core.detect.image_region import Candidate, _box_sum, _counts, disc_boxes, downscale, non_maximum
 
 NOISE_VAR = 25.0  # (Lab units)^2: a spread under ~5 units is image noise, not texture
 MIN_RESPONSE = 0.5  # smallest side distance (in spreads) that makes a candidate
@@ -65,10 +65,7 @@ def disc_response(planes: list[np.ndarray], sq: np.ndarray, R: float) -> np.ndar
     the image; at least MIN_SIDES must be inside, else the response is 0.
     """
     h, w = planes[0].shape
-    hi = max(1, int(round(0.7 * R)))
-    ki = max(hi + 1, int(round(1.15 * R)))
-    ko = max(ki + 1, int(round(1.5 * R)))
-    hx, off = max(1, (ko - ki) // 2), (ki + ko + 1) // 2
+    hi, hx, off = disc_boxes(R)
     n_in = np.outer(_counts(h, hi), _counts(w, hi))
     m_in = [_box_sum(p, hi, hi) / n_in for p in planes]
     v_in = np.maximum(_box_sum(sq, hi, hi) / n_in - sum(m * m for m in m_in), 0.0)
@@ -128,23 +125,6 @@ def candidates_by_discs(small_rgb: np.ndarray, s: int, r_bounds_px: tuple[float,
             ys, xs = ys[top], xs[top]
         f = 2 ** L
         peaks += [(float(D[y, x]), float(R), (x + 0.5) * f - 0.5, (y + 0.5) * f - 0.5) for y, x in zip(ys, xs)]
-    return _strongest(peaks, s, (h, w), max_candidates)
-
-
-def _strongest(peaks, s: int, shape, max_candidates: int) -> list[Candidate]:
-    """Best peaks, each object once (a neighbouring scale or position of a kept one is dropped)."""
-    h, w = shape
     # a mild preference for larger discs: a uniform patch between grout lines (a tile, a
     # brick) stands out as much as a ball, but only at a small radius
-    peaks.sort(key=lambda p: -p[0] * np.sqrt(p[1]))
-    out: list[Candidate] = []
-    for v, R, x, y in peaks:
-        c_full = (np.array([x, y], float) + 0.5) * s - 0.5
-        if any(np.hypot(*(c.centre_px - c_full)) < 0.9 * max(c.radius_px, R * s)
-               and 0.6 < c.radius_px / (R * s) < 1.7 for c in out):
-            continue
-        touches = x - R < 1 or y - R < 1 or x + R > w - 2 or y + R > h - 2
-        out.append(Candidate(c_full, R * s, (R * s, R * s), 0.0, bool(touches), 100.0 * v, "discs"))
-        if len(out) >= max_candidates:
-            break
-    return out
+    return non_maximum(peaks, s, (h, w), max_candidates, "discs", min_sep=0.9)

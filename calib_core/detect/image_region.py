@@ -155,6 +155,35 @@ def candidates_from_background(small: np.ndarray, bg_small: np.ndarray, s: int,
     return out, D
 
 
+def disc_boxes(R: float) -> tuple[int, int, int]:
+    """Box geometry of a disc test at radius ``R`` (px): the inner box's half side (0.7 R), and the
+    half width and centre offset of the eight boxes around it (the ring 1.15-1.5 R)."""
+    hi = max(1, int(round(0.7 * R)))
+    ki = max(hi + 1, int(round(1.15 * R)))
+    ko = max(ki + 1, int(round(1.5 * R)))
+    return hi, max(1, (ko - ki) // 2), (ki + ko + 1) // 2
+
+
+def non_maximum(peaks, s: int, shape, max_candidates: int, source: str, min_sep: float) -> list[Candidate]:
+    """Best ``(value, R, x, y)`` peaks (at 1/``s`` scale, image ``shape`` there) as candidates, each
+    object once: a peak within ``min_sep`` radii of a kept one at a similar size (0.6-1.7x) is
+    dropped. Larger peaks rank higher at equal value (value x sqrt(R)): clutter makes small round
+    responses far more often than large ones."""
+    h, w = shape
+    peaks = sorted(peaks, key=lambda p: -p[0] * np.sqrt(p[1]))
+    out: list[Candidate] = []
+    for v, R, x, y in peaks:
+        c_full = (np.array([x, y], float) + 0.5) * s - 0.5
+        if any(np.hypot(*(c.centre_px - c_full)) < min_sep * max(c.radius_px, R * s)
+               and 0.6 < c.radius_px / (R * s) < 1.7 for c in out):
+            continue
+        touches = x - R < 1 or y - R < 1 or x + R > w - 2 or y + R > h - 2
+        out.append(Candidate(c_full, R * s, (R * s, R * s), 0.0, bool(touches), 100.0 * v, source))
+        if len(out) >= max_candidates:
+            break
+    return out
+
+
 def _box_sum(a: np.ndarray, half_x: int, half_y: int) -> np.ndarray:
     return cv2.boxFilter(a, -1, (2 * half_x + 1, 2 * half_y + 1), normalize=False,
                          borderType=cv2.BORDER_CONSTANT)
@@ -186,10 +215,7 @@ def _centre_surround(planes: list[np.ndarray], R: float) -> np.ndarray:
     ``planes``: the colour channels as contiguous float32 (h, w) arrays.
     """
     h, w = planes[0].shape
-    hi = max(1, int(round(0.7 * R)))
-    ki = max(hi + 1, int(round(1.15 * R)))
-    ko = max(ki + 1, int(round(1.5 * R)))
-    hx, off = max(1, (ko - ki) // 2), (ki + ko + 1) // 2
+    hi, hx, off = disc_boxes(R)
     n_in = np.outer(_counts(h, hi), _counts(w, hi))
     m_in = [_box_sum(p, hi, hi) / n_in for p in planes]
     C = np.full((h, w), np.inf, np.float32)

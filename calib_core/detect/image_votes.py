@@ -18,7 +18,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from calib_core.detect.image_region import Candidate, downscale
+from calib_core.detect.image_region import Candidate, downscale, non_maximum
 
 LEVEL_RADIUS_PX = (4.0, 8.0)
 RADIUS_STEP = 1.2
@@ -96,7 +96,7 @@ def candidates_by_votes(small_rgb: np.ndarray, s: int, r_bounds_px: tuple[float,
         f = 2 ** L
         peaks += list(zip(V[yy, xx].tolist(), [float(R)] * len(yy), ((xx + 0.5) * f - 0.5).tolist(),
                           ((yy + 0.5) * f - 0.5).tolist()))
-    return _non_maximum(peaks, s, (h0, w0), max_candidates)
+    return non_maximum(peaks, s, (h0, w0), max_candidates, "votes", min_sep=0.5)
 
 
 def _edge_pixels(lab: np.ndarray):
@@ -106,21 +106,3 @@ def _edge_pixels(lab: np.ndarray):
     ys, xs = np.nonzero(mag > thr)
     m = mag[ys, xs]
     return (xs.astype(np.float32), ys.astype(np.float32), gx[ys, xs] / m, gy[ys, xs] / m, (h, w))
-
-
-def _non_maximum(peaks, s: int, shape, max_candidates: int) -> list[Candidate]:
-    h, w = shape
-    # a larger complete outline is stronger evidence: clutter (screw heads, checker corners,
-    # texture) makes small round vote peaks far more often than large ones
-    peaks.sort(key=lambda p: -p[0] * np.sqrt(p[1] * s))
-    out: list[Candidate] = []
-    for v, R, x, y in peaks:
-        c_full = (np.array([x, y], float) + 0.5) * s - 0.5
-        if any(np.hypot(*(c.centre_px - c_full)) < 0.5 * max(c.radius_px, R * s)
-               and 0.6 < c.radius_px / (R * s) < 1.7 for c in out):
-            continue
-        touches = x - R < 1 or y - R < 1 or x + R > w - 2 or y + R > h - 2
-        out.append(Candidate(c_full, R * s, (R * s, R * s), 0.0, bool(touches), 100.0 * v, "votes"))
-        if len(out) >= max_candidates:
-            break
-    return out
