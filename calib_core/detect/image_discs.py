@@ -24,7 +24,8 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from calib_core.detect.image_region import Candidate, _box_sum, _counts, disc_boxes, downscale, non_maximum
+from calib_core.detect.image_region import (Candidate, _box_sum, _counts, disc_boxes, downscale, non_maximum,
+                                           radius_ladder)
 
 NOISE_VAR = 25.0  # (Lab units)^2: a spread under ~5 units is image noise, not texture
 MIN_RESPONSE = 0.5  # smallest side distance (in spreads) that makes a candidate
@@ -106,11 +107,9 @@ def candidates_by_discs(small_rgb: np.ndarray, s: int, r_bounds_px: tuple[float,
         :class:`Candidate` list (``source`` "discs", ``strength`` = response x 100).
     """
     h, w = small_rgb.shape[:2]
-    r_lo = max(2.5, 0.8 * r_bounds_px[0] / s)
-    r_hi = min(1.3 * r_bounds_px[1] / s, 0.5 * min(h, w))
-    if r_hi < r_lo:
+    radii = radius_ladder((h, w), s, r_bounds_px, 2.5, 1.3, RADIUS_STEP)
+    if not len(radii):
         return []
-    radii = np.exp(np.arange(np.log(r_lo), np.log(r_hi) + 1e-9, np.log(RADIUS_STEP)))
     lab = cv2.cvtColor(np.ascontiguousarray(small_rgb), cv2.COLOR_RGB2LAB).astype(np.float32)
     stats = _level_stats(lab, max(0, int(np.floor(np.log2(radii[-1] / 3.0)))))
     peaks = []

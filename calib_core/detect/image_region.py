@@ -155,6 +155,18 @@ def candidates_from_background(small: np.ndarray, bg_small: np.ndarray, s: int,
     return out, D
 
 
+def radius_ladder(shape, s: int, r_bounds_px: tuple[float, float], r_min: float, hi_factor: float,
+                  step: float) -> np.ndarray:
+    """Radii (px at 1/``s`` scale) a candidate search tries: geometric steps of ``step`` from 0.8 x
+    the smallest expected radius (at least ``r_min``) to ``hi_factor`` x the largest (at most half
+    the image ``shape``'s smaller side); empty when that range is empty."""
+    r_lo = max(r_min, 0.8 * r_bounds_px[0] / s)
+    r_hi = min(hi_factor * r_bounds_px[1] / s, 0.5 * min(shape))
+    if r_hi < r_lo:
+        return np.zeros(0)
+    return np.exp(np.arange(np.log(r_lo), np.log(r_hi) + 1e-9, np.log(step)))
+
+
 def disc_boxes(R: float) -> tuple[int, int, int]:
     """Box geometry of a disc test at radius ``R`` (px): the inner box's half side (0.7 R), and the
     half width and centre offset of the eight boxes around it (the ring 1.15-1.5 R)."""

@@ -18,7 +18,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from calib_core.detect.image_region import Candidate, downscale, non_maximum
+from calib_core.detect.image_region import Candidate, downscale, non_maximum, radius_ladder
 
 LEVEL_RADIUS_PX = (4.0, 8.0)
 RADIUS_STEP = 1.2
@@ -67,11 +67,9 @@ def candidates_by_votes(small_rgb: np.ndarray, s: int, r_bounds_px: tuple[float,
         :class:`Candidate` list (``source`` "votes", ``strength`` = outline fraction x 100).
     """
     h0, w0 = small_rgb.shape[:2]
-    r_lo = max(3.0, 0.8 * r_bounds_px[0] / s)
-    r_hi = min(1.25 * r_bounds_px[1] / s, 0.5 * min(h0, w0))
-    if r_hi < r_lo:
+    radii = radius_ladder((h0, w0), s, r_bounds_px, 3.0, 1.25, RADIUS_STEP)
+    if not len(radii):
         return []
-    radii = np.exp(np.arange(np.log(r_lo), np.log(r_hi) + 1e-9, np.log(RADIUS_STEP)))
     lab = cv2.cvtColor(np.ascontiguousarray(small_rgb), cv2.COLOR_RGB2LAB).astype(np.float32)
     levels: dict[int, tuple] = {}
     peaks = []
