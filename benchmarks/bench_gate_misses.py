@@ -66,10 +66,10 @@ def f_power(lam: float, n: int) -> float:
     noncentrality ``lam``: the best any test can do when the sigmas are not trusted."""
     from scipy.stats import ncf
 
-    from calib_core.solve.gate import f_critical
+    from calib_core.solve.gate import drop_critical
 
     dof = 2 * n - 8
-    return float(ncf.sf(f_critical(np.array([dof]), n)[0], 2, dof, lam))
+    return float(ncf.sf(drop_critical(np.array([dof]), n)[0], 2, dof, lam))
 
 
 def evidence(rig, X_clean, X_moved, i: int) -> tuple[float, float, float, float]:
