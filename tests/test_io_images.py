@@ -131,3 +131,15 @@ def test_video_missing_and_corrupt(tmp_path):
     (tmp_path / "r.mp4").write_bytes(np.random.default_rng(2).bytes(3000))
     with pytest.raises(SessionError):
         load_background_frames(tmp_path / "r.mp4")
+
+
+@pytest.mark.parametrize("bits", [10, 12, 16])
+def test_16bit_files_holding_fewer_bits_use_their_full_scale(tmp_path, bits):
+    """A 12-bit camera frame in a 16-bit PNG keeps its contrast (not 0-16 DN)."""
+    full = (1 << bits) - 1
+    grey = np.tile(np.linspace(0, full, 40).astype(np.uint16), (30, 1))
+    cv2.imwrite(str(tmp_path / "m.png"), grey)
+    back = load_image(tmp_path / "m.png")[:, :, 0].astype(int)
+    expected = np.round(grey.astype(float) * 255.0 / full).astype(int)
+    assert np.abs(back - expected).max() <= 1
+    assert back.max() == 255
