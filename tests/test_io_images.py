@@ -143,3 +143,13 @@ def test_16bit_files_holding_fewer_bits_use_their_full_scale(tmp_path, bits):
     expected = np.round(grey.astype(float) * 255.0 / full).astype(int)
     assert np.abs(back - expected).max() <= 1
     assert back.max() == 255
+
+
+def test_a_resized_frame_gets_a_hint_to_scale_the_intrinsics(tmp_path, rgb):
+    save_image(tmp_path / "half.png", rgb)  # 40 x 30
+    with pytest.raises(SessionError, match=r"scaled by 0\.5: scale fx, fy, cx, cy") as ei:
+        load_image(tmp_path / "half.png", expected_wh=(80, 60))
+    assert "\n" not in ei.value.problem
+    with pytest.raises(SessionError) as ei:
+        load_image(tmp_path / "half.png", expected_wh=(80, 45))
+    assert "scaled by" not in ei.value.problem

@@ -94,7 +94,20 @@ def _tiff_size(path: Path) -> tuple[int, int] | None:
 
 def _check_expected(path: Path, wh: tuple[int, int], expected_wh) -> None:
     if expected_wh is not None and tuple(int(v) for v in expected_wh) != wh:
-        raise SessionError(path, f"image is {wh[0]} x {wh[1]} but its intrinsics say {expected_wh[0]} x {expected_wh[1]}")
+        raise SessionError(path, f"image is {wh[0]} x {wh[1]} but its intrinsics say {expected_wh[0]} x {expected_wh[1]}"
+                                 + _resize_hint(wh, expected_wh))
+
+
+def _resize_hint(wh, expected_wh) -> str:
+    """When the image is the intrinsics' frame resized by one factor (a half-size export,
+    a binned camera), say so: the intrinsics can be scaled instead of recalibrated."""
+    if min(int(expected_wh[0]), int(expected_wh[1]), *wh) <= 0:
+        return ""
+    sx, sy = wh[0] / float(expected_wh[0]), wh[1] / float(expected_wh[1])
+    if abs(sx - sy) < 2.0 / max(wh) and sx != 1.0:
+        return (f" (the same frame scaled by {sx:.4g}: scale fx, fy, cx, cy and the image size "
+                f"in the intrinsics by {sx:.4g}, or use images of the calibrated size)")
+    return ""
 
 
 def load_image(path: str | Path, expected_wh: tuple[int, int] | None = None) -> np.ndarray:
