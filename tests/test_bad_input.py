@@ -84,7 +84,7 @@ CASES = {
     "cloud with 0 points": Case(lambda r, _: (r / "clouds" / "p01.ply").write_text(
         "ply\nformat ascii 1.0\nelement vertex 0\nproperty float x\nproperty float y\nproperty float z\nend_header\n"),
         "p01.ply", "no points", "cloud"),
-    "nan/inf points only": Case(_nan_cloud, "p02.ply", "no finite points", "cloud"),
+    "nan/inf points only": Case(_nan_cloud, "p02.ply", "holds no return", "cloud"),
     "huge cloud": Case(_huge_cloud, "p03.xyz", "GiB", "cloud"),
     "symlink outside": Case(_symlink_out, "session.yaml", "leaves the session folder", "manifest"),
     "dot-dot path": Case(lambda r, _: _edit(r, lambda d: d["captures"][0].update(cloud="../x.ply")),

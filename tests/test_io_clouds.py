@@ -140,7 +140,7 @@ def test_nan_points_in_each_format(tmp_path, suffix):
     c = load_cloud(tmp_path / f"n{suffix}")
     assert len(c) == 2 and c.n_without_return == 1
     save_cloud(tmp_path / f"a{suffix}", Cloud(np.full((4, 3), np.nan)))
-    with pytest.raises(SessionError, match="no finite points") as ei:
+    with pytest.raises(SessionError, match="no return") as ei:
         load_cloud(tmp_path / f"a{suffix}")
     assert ei.value.path == tmp_path / f"a{suffix}"
 
@@ -166,3 +166,14 @@ def test_unknown_suffix_and_writer_errors(tmp_path, cloud):
 def test_uppercase_suffix(tmp_path, cloud):
     save_cloud(tmp_path / "C.PLY", cloud)
     assert len(load_cloud(tmp_path / "C.PLY")) == 500
+
+
+def test_points_at_the_sensor_origin_are_no_return(tmp_path, cloud):
+    pts = cloud.points_m.copy()
+    pts[:40] = 0.0  # a LiDAR driver's "no return"
+    save_cloud(tmp_path / "z.npy", Cloud(pts, cloud.intensity))
+    c = load_cloud(tmp_path / "z.npy")
+    assert len(c) == 460 and c.n_without_return == 40 and c.points_m.any(axis=1).all() and len(c.intensity) == 460
+    save_cloud(tmp_path / "zz.npy", Cloud(np.zeros((30, 3))))
+    with pytest.raises(SessionError, match="no return"):
+        load_cloud(tmp_path / "zz.npy")
