@@ -26,9 +26,6 @@ MIN_CHECK = 6  # with fewer captures outliers cannot be told apart
 EXACT_SCREEN = 0.2
 EXACT_TOP = 3
 READMIT_MARGIN = 4.0  # see _readmit
-# a set with at most this many dof gets no margin: its F critical value is already wide (4 dof:
-# 54.6 at 8 captures), and 4x that let three wrong centres of 8 back in jointly
-MARGIN_FROM_DOF = 5
 
 
 @dataclass
@@ -173,7 +170,6 @@ def _readmit(cd: CameraData, T: np.ndarray, inl: np.ndarray, res: GateResult) ->
     chi_a = float(np.sum(per_camera_stats(cd, T)[3][inl]))
     dof_a = 2 * int(inl.sum()) - 6
     t = np.where(np.isfinite(res.t), res.t, np.inf)
-    margin = READMIT_MARGIN if dof_a >= MARGIN_FROM_DOF else 1.0
     extra = np.zeros(n, bool)
     for j in np.flatnonzero(~inl)[np.argsort(t[~inl])]:
         if not np.isfinite(t[j]):
@@ -183,7 +179,7 @@ def _readmit(cd: CameraData, T: np.ndarray, inl: np.ndarray, res: GateResult) ->
         T2, _ = fit_subset(cd, trial, T)
         k = int((trial & ~inl).sum())
         F = (float(np.sum(per_camera_stats(cd, T2)[3][trial])) - chi_a) / (2 * k) / max(chi_a / dof_a, 1e-300)
-        if F <= margin * fdtri(2 * k, dof_a, 1 - ALPHA / n):
+        if F <= READMIT_MARGIN * fdtri(2 * k, dof_a, 1 - ALPHA / n):
             extra[j] = True
     return extra
 
