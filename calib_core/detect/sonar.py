@@ -50,6 +50,7 @@ import numpy as np
 
 from calib_core.detect.sonar_fit import FitResult, angle_to_axis_rad, cone_residuals, fit_sphere
 from calib_core.detect.sonar_outline import attached_sectors, attached_span, free_outline_mask, roughness_m
+from calib_core.detect.sonar_streams import lowest_hashes
 from calib_core.detect.sonar_search import (
     Candidate,
     disc_coverage,
@@ -191,11 +192,10 @@ def _crop(P: np.ndarray, cand: Candidate, r: float, h: float):
     cn0 = float(np.linalg.norm(cand.center_m))
     start = start_center(cand, r)
     idx = crop_ball(P, start, 1.6 * r + cn0 * np.tan(h) + 0.05)
-    if len(idx) > JUDGE_POINTS:  # judged on a random subset; _finish refits on them all
-        idx_j = np.sort(np.random.default_rng(0).choice(len(idx), JUDGE_POINTS, replace=False))
-    else:
-        idx_j = np.arange(len(idx))
-    return start, idx, idx_j
+    # the crop in an order keyed to the points themselves (the same whatever their order in
+    # the cloud or what else it holds); judged on its first JUDGE_POINTS, _finish refits on all
+    idx = idx[lowest_hashes(P[idx], len(idx))]
+    return start, idx, np.arange(min(len(idx), JUDGE_POINTS))
 
 
 def _size_seen(X, D, fit: FitResult, r: float, h: float) -> tuple[float, float]:
@@ -399,7 +399,8 @@ def detect_sphere_in_cloud(points_sonar_m: np.ndarray, sphere_radius_m: float,
             sphere: only points within ``seed_radius_m`` + a sphere's reach are searched, and
             the acceptable candidate nearest the pick wins.
         seed_radius_m: search radius around the seed (m).
-        rng_seed: seed of the random thinning and RANSAC (results are deterministic).
+        rng_seed: key of the thinning and RANSAC draws (:mod:`.sonar_streams`; results are
+            deterministic, and each cluster's draws depend on its own returns only).
 
     Returns:
         :class:`SonarDetection`; ``found=False`` with a ``reason`` when nothing trustworthy is
@@ -420,7 +421,7 @@ def detect_sphere_in_cloud(points_sonar_m: np.ndarray, sphere_radius_m: float,
     if base is not None and len(base) < MIN_POINTS:
         return _not_found(f"too few points near the picked point ({len(base)})", method, n_points=n_all)
     W = P if base is None else P[base]
-    cands, info = find_candidates(W, r, h, np.random.default_rng(rng_seed), max_candidates=MAX_JUDGED)
+    cands, info = find_candidates(W, r, h, rng_seed, max_candidates=MAX_JUDGED)
     if not cands:
         return _not_found("no sphere-like cluster", method, n_points=n_all,
                           n_clusters=int(info.get("n_clusters", 0)))
