@@ -28,20 +28,29 @@ _M2 = np.uint64(0xBF58476D1CE4E5B9)
 _M3 = np.uint64(0x94D049BB133111EB)
 
 
-def _mix(h: np.ndarray) -> np.ndarray:
-    """splitmix64's finaliser (uint64 in, uint64 out; wrap-around arithmetic)."""
-    h = (h ^ (h >> np.uint64(30))) * _M2
-    h = (h ^ (h >> np.uint64(27))) * _M3
-    return h ^ (h >> np.uint64(31))
+def _mix(h: np.ndarray, tmp: np.ndarray) -> np.ndarray:
+    """splitmix64's finaliser, in place on ``h`` (uint64; wrap-around arithmetic), with the
+    scratch array ``tmp`` (fresh temporaries cost page faults on big clouds)."""
+    for shift, mult in ((30, _M2), (27, _M3)):
+        np.right_shift(h, np.uint64(shift), out=tmp)
+        h ^= tmp
+        h *= mult
+    np.right_shift(h, np.uint64(31), out=tmp)
+    h ^= tmp
+    return h
 
 
 def point_hash(points_m: np.ndarray, key: int = 0) -> np.ndarray:
     """(N,) uint64: a hash of each point's exact coordinates (float64 bits) and ``key``."""
     bits = np.ascontiguousarray(points_m, dtype=np.float64).view(np.uint64).reshape(-1, 3)
     with np.errstate(over="ignore"):
-        h = _mix(bits[:, 0] + np.uint64(key & 0xFFFFFFFFFFFFFFFF) * _M1)
-        h = _mix(h ^ bits[:, 1])
-        return _mix(h ^ bits[:, 2])
+        h = bits[:, 0] * _M1
+        tmp = np.multiply(bits[:, 1], _M2)
+        h ^= tmp
+        np.multiply(bits[:, 2], _M3, out=tmp)
+        h ^= tmp
+        h ^= np.uint64(key & 0xFFFFFFFFFFFFFFFF)
+        return _mix(h, tmp)
 
 
 def thin_hashed(points_m: np.ndarray, max_points: int, key: int = 0) -> np.ndarray:
