@@ -30,7 +30,9 @@ growing with the square of the range for a depth camera) and judged at each cand
 More than one acceptable candidate gives "two candidates" unless one has CLEAR_WINNER times the
 other's evidence (score x agreement of the size seen with session.yaml's, given how precisely it
 was measured x scatter against the sensor noise: a carried ball beats the shoulders and head of
-the person behind it); a sphere of another size is reported, not used. Every refusal says why, in words an operator can act on.
+the person behind it), or when only the leader's outline hangs free while a surface continues every
+other one's over a long arc (a head on its shoulders: :func:`_free_leader`); a sphere of another
+size is reported, not used. Every refusal says why, in words an operator can act on.
 The effective beam width (down to 0) is estimated per session with
 :func:`calib_core.detect.sonar_beam.estimate_beam_width_deg`.
 
