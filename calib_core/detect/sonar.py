@@ -58,7 +58,6 @@ from calib_core.detect.sonar_outline import (
     longest_attached_arc,
     roughness_m,
 )
-from calib_core.detect.sonar_streams import lowest_hashes
 from calib_core.detect.sonar_search import (
     Candidate,
     disc_coverage,
@@ -67,6 +66,7 @@ from calib_core.detect.sonar_search import (
     noise_at,
     start_center,
 )
+from calib_core.detect.sonar_streams import lowest_hashes
 from calib_core.detect.types import SonarDetection
 
 METHODS = ("cone-model", "known-radius", "free-radius")
@@ -478,7 +478,8 @@ def _noise_near(info: dict, center_m) -> float:
 def _choose(judged: list[_Judged], r: float, seed, W: np.ndarray, h: float) -> tuple[_Judged | None, dict]:
     """The candidate to use and the detection's extras, or (None, extras with a ``reason``):
     the operator's pick decides when there is one; else one candidate of the session's size
-    (a second one is tolerated when the first has CLEAR_WINNER times its evidence)."""
+    (a second one is tolerated when the first has CLEAR_WINNER times its evidence, or when
+    only the first hangs free: :func:`_free_leader`)."""
     good = _dedupe([j for j in judged if not j.problem], r)
     if not good:
         best = max(judged, key=lambda j: j.score)
