@@ -22,6 +22,7 @@ from calib_core.detect.entries import (SessionData, _as_data, beam_capture_ids, 
                                        beam_width_from_crops, detect_image_entry, detect_one, detect_sonar_entry,
                                        estimate_session_beam_width, session_beam_width)
 from calib_core.detect.image_score import from_raw
+from calib_core.detect.reasons import range_is_measured
 from calib_core.detections import is_operator_entry, merge_auto, now_iso
 from calib_core.errors import SessionError
 from calib_core.session import Session
@@ -402,7 +403,8 @@ class Correspondences:
         statuses: (image status, sonar status) per row.
         skipped: {capture_id: reason} for captures not used.
         range_m, range_sigma_m: (N,) the image detection's camera-to-centre range (m, from the known
-            diameter) and its 1-sigma; NaN where the entry has none (e.g. a click).
+            diameter) and its 1-sigma; NaN where the entry has none (e.g. a click) or where its size
+            was pulled towards the sonar's prediction (a look at the predicted place).
     """
 
     capture_ids: list[str]
@@ -459,7 +461,9 @@ def correspondences(session: Session, detections: dict, cam: str) -> Corresponde
         X.append(son["center"])
         cX.append(_cov(son, "cov_m2", 3, DEFAULT_SIGMA_SONAR_M))
         st.append((img["status"], son["status"]))
-        rng.append([_number(img.get("range_m")), _number(img.get("range_sigma_m"))])
+        # a range pulled towards the sonar-predicted size would pull the apparent-size scale to 1
+        rng.append([_number(img.get("range_m")), _number(img.get("range_sigma_m"))] if range_is_measured(img)
+                   else [float("nan")] * 2)
     return Correspondences(ids, np.asarray(uv, float).reshape(-1, 2), np.asarray(cuv, float).reshape(-1, 2, 2),
                            np.asarray(X, float).reshape(-1, 3), np.asarray(cX, float).reshape(-1, 3, 3), st, skipped,
                            np.asarray(rng, float).reshape(-1, 2)[:, 0], np.asarray(rng, float).reshape(-1, 2)[:, 1])

@@ -1,0 +1,82 @@
+"""The look at the sonar-predicted place and size (issue 11, score round 2): what it records.
+
+- It has no probability, so it writes no ``score``: the share of the outline it saw goes under
+  its own key and shows as "outline seen NN %" (one phrase, built in calib_core.detect.reasons).
+- Its size is pulled towards the prediction by a prior, so its range must not feed the
+  one-camera apparent-size scale (pipeline.correspondences leaves it out).
+"""
+
+from __future__ import annotations
+
+from types import SimpleNamespace
+
+import cv2
+import numpy as np
+
+from calib_core.camera import CameraModel
+from calib_core.detect.image_predicted import PRIOR_REL_SIGMA, detect_at_prediction
+from calib_core.detect.reasons import (OUTLINE_SEEN_KEY, RANGE_PRIOR_KEY, entry_score, range_is_measured, score_phrase,
+                                       score_text)
+from calib_core.pipeline import correspondences
+
+RADIUS_M = 0.3
+
+
+def _half_hidden_ball():
+    """A grey ball whose upper half sits before a backrest of nearly its shade (drawn, 4x supersampled)."""
+    cam = CameraModel(960, 600, np.array([[700.0, 0, 480], [0, 700.0, 300], [0, 0, 1]]))
+    C = np.array([0.4, 0.1, 3.0])
+    uv = cam.project(C[None])[0]
+    r = cam.fx * np.tan(np.arcsin(RADIUS_M / np.linalg.norm(C)))
+    img = np.full((600, 960, 3), 150.0, np.float32)
+    img[: int(uv[1] + 0.1 * r), int(uv[0] - 1.3 * r):int(uv[0] + 1.3 * r)] = 112.0
+    ss = 4
+    mask = np.zeros((600 * ss, 960 * ss), np.uint8)
+    cv2.circle(mask, (int(round((uv[0] + 0.5) * ss - 0.5)), int(round((uv[1] + 0.5) * ss - 0.5))), int(r * ss), 255, -1)
+    alpha = cv2.resize(mask.astype(np.float32) / 255.0, (960, 600), interpolation=cv2.INTER_AREA)[..., None]
+    img = img * (1 - alpha) + 110.0 * alpha
+    rng = np.random.default_rng(1)
+    img = np.clip(cv2.GaussianBlur(img, (0, 0), 0.8) + rng.normal(0, 2.0, img.shape), 0, 255).astype(np.uint8)
+    return cam, img, uv, r
+
+
+def test_a_found_look_has_no_probability_but_says_how_much_outline_it_saw():
+    cam, img, uv, r = _half_hidden_ball()
+    det = detect_at_prediction(img, cam, RADIUS_M, uv + np.array([2.0, -1.5]), 1.01 * r, shift_frac=0.1)
+    assert det.found, det.reason
+    entry = det.to_entry()
+    assert det.score is None and "score" not in entry
+    seen = entry[OUTLINE_SEEN_KEY]
+    assert 0.3 < seen <= entry["support"] < 0.9  # about half of the outline, discounted by its spread
+    assert entry[RANGE_PRIOR_KEY] == PRIOR_REL_SIGMA and not range_is_measured(entry)
+    assert score_text(entry) == f"outline seen {100 * seen:.0f} %" == score_phrase(entry)
+
+
+def test_score_words_built_once():
+    assert score_text({"score": 0.934}) == "0.93" and score_phrase({"score": 0.934}) == "score 0.93"
+    assert score_text({"outline_seen": 0.62}) == "outline seen 62 %"
+    assert score_text({"status": "corrected", "center": [1, 2]}) == "" == score_phrase({})
+    assert entry_score({"outline_seen": 0.9}) is None and entry_score({"score": 1}) == 1.0
+
+
+def test_review_cell_shows_a_look_as_outline_seen_not_as_a_score():
+    from app.review import DOTS, cell
+
+    c = cell({"status": "auto", "score": None, "score_text": "outline seen 62 %", "residual_px": 0.5, "found": True,
+              "flag": None})
+    assert "outline\u00a0seen\u00a062\u00a0%" in c and c.startswith(DOTS["good"])  # judged by its residual alone
+
+
+def test_apparent_size_scale_leaves_out_ranges_pulled_to_the_prediction():
+    caps = [SimpleNamespace(id=f"c{i}", image_paths={"cam1": "x.png"}) for i in range(3)]
+    session = SimpleNamespace(cameras={"cam1": None}, captures=caps, manifest_path="session.yaml")
+    son = {"status": "auto", "center": [0.0, 0.0, 2.0]}
+    free = {"status": "auto", "center": [1.0, 2.0], "range_m": 2.04, "range_sigma_m": 0.01, "score": 0.9}
+    look = {"status": "auto", "center": [1.0, 2.0], "range_m": 2.0, "range_sigma_m": 0.01, OUTLINE_SEEN_KEY: 0.6,
+            RANGE_PRIOR_KEY: PRIOR_REL_SIGMA}
+    click = {"status": "corrected", "center": [1.0, 2.0]}
+    dets = {"c0": {"sonar": son, "cam1": free}, "c1": {"sonar": son, "cam1": look}, "c2": {"sonar": son, "cam1": click}}
+    corr = correspondences(session, dets, "cam1")
+    assert corr.capture_ids == ["c0", "c1", "c2"]  # the look's centre is used ...
+    assert corr.range_m[0] == 2.04 and corr.range_sigma_m[0] == 0.01
+    assert np.isnan(corr.range_m[1:]).all() and np.isnan(corr.range_sigma_m[1:]).all()  # ... its range is not
