@@ -80,3 +80,24 @@ def test_apparent_size_scale_leaves_out_ranges_pulled_to_the_prediction():
     assert corr.capture_ids == ["c0", "c1", "c2"]  # the look's centre is used ...
     assert corr.range_m[0] == 2.04 and corr.range_sigma_m[0] == 0.01
     assert np.isnan(corr.range_m[1:]).all() and np.isnan(corr.range_sigma_m[1:]).all()  # ... its range is not
+
+
+def test_one_camera_scale_uses_the_rows_that_have_a_range():
+    """Looks (and clicks) have no range: the scale comes from the other rows, not held at 1."""
+    from calib_core.geometry import transform_points
+    from calib_core.solve.model import camera_data
+    from calib_core.solve.outline import RangeModel
+    from calib_core.solve.simulate import synthetic_rig
+    from calib_core.solve.simulate_ranges import image_ranges
+    from calib_core.solve.single import solve_camera
+
+    rig = synthetic_rig(73, n_captures=15, scale=1.02, depth_m=(0.8, 3.0))
+    P = transform_points(rig.T_cam_sonar["cam1"], rig.X_true_sonar_m)
+    rng_m, sig_m = image_ranges(rig.cameras["cam1"], P, 0.11, 0.0, 1.0, 0.003, np.random.default_rng(2))
+    rng_m[[1, 5, 9, 12]] = np.nan  # four rows from looks: range left out
+    sig_m[[1, 5, 9, 12]] = np.nan
+    cd = camera_data("cam1", rig.cameras["cam1"], rig.capture_ids, rig.uv_px["cam1"], rig.cov_uv_px2["cam1"],
+                     rig.X_sonar_m, rig.cov_X_m2, rng_m, sig_m)
+    sol = solve_camera(cd, loo=False, estimate_scale=True, range_model=RangeModel(0.001 / 0.22, 0.11, 1.0))
+    assert sol.scale_observable and sol.scale_sigma is not None
+    assert abs(sol.scale - 1.02) < 3 * sol.scale_sigma and abs(sol.scale - 1.0) > 3 * sol.scale_sigma
