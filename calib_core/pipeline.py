@@ -21,7 +21,7 @@ import numpy as np
 from calib_core.detect.entries import (SessionData, _as_data, beam_capture_ids, beam_crop_of,  # noqa: F401  (public API)
                                        beam_width_from_crops, detect_image_entry, detect_one, detect_sonar_entry,
                                        estimate_session_beam_width, session_beam_width)
-from calib_core.detect.image_score import from_raw
+from calib_core.detect.image_score import entry_logit
 from calib_core.detect.reasons import range_is_measured
 from calib_core.detections import is_operator_entry, merge_auto, now_iso
 from calib_core.errors import SessionError
@@ -194,7 +194,7 @@ def _resolve_round(data: SessionData, detections: dict, cam: str, only: set) -> 
         hint = {"hint_uv_px": [round(float(u), 3), round(float(v), 3)], "hint_radius_px": round(float(radius_px), 3)}
         refit = (entry.get("center") is not None and np.hypot(entry["center"][0] - u, entry["center"][1] - v) < 0.5 * radius_px
                  and _range_agrees(entry.get("range_m"), rng_m))
-        if cid in res.predicted_uvr and _trusted(res, len(cands), cid) and not (refit and entry.get("score", 0) >= CLEAR_SCORE):
+        if cid in res.predicted_uvr and _trusted(res, len(cands), cid) and not (refit and _clear_refit(entry)):
             # a well supported registration knows the size too: the look at the predicted place and
             # size beats a faint free refit (which may have taken a larger outline around it)
             looked = _look_at_prediction(data, cid, cam, (u, v, rng_m), res, detections[cid][cam], hint)
@@ -258,9 +258,18 @@ PREDICTION_MIN_SUPPORT = 4
 PREDICTION_MAX_RANGE_RMS = 0.04
 
 
-# a free refit scored this high (or more) is kept over the look at the predicted size: the score
-# model's even odds before its recalibration (0.78 as a recalibrated probability), as it was set
-CLEAR_SCORE = from_raw(0.5)
+# a free refit is kept over the look at the predicted size when the score model's logistic gives it
+# even odds or more before any calibration (a threshold set on that scale: recalibrations of the
+# score leave the decision alone); an entry that records no outline features, when its score is
+# at least CLEAR_SCORE (the same threshold through the first round's Platt line)
+CLEAR_LOGIT = 0.0
+CLEAR_SCORE = 0.7831
+
+
+def _clear_refit(entry: dict) -> bool:
+    """Whether a free refit is clear enough to keep over the look (CLEAR_LOGIT / CLEAR_SCORE)."""
+    z = entry_logit(entry)
+    return z >= CLEAR_LOGIT if z is not None else entry.get("score", 0) >= CLEAR_SCORE
 
 
 def _range_agrees(range_m, predicted_m: float) -> bool:

@@ -101,3 +101,21 @@ def test_one_camera_scale_uses_the_rows_that_have_a_range():
     sol = solve_camera(cd, loo=False, estimate_scale=True, range_model=RangeModel(0.001 / 0.22, 0.11, 1.0))
     assert sol.scale_observable and sol.scale_sigma is not None
     assert abs(sol.scale - 1.02) < 3 * sol.scale_sigma and abs(sol.scale - 1.0) > 3 * sol.scale_sigma
+
+
+def test_the_clear_refit_decision_does_not_move_with_the_calibration(monkeypatch):
+    """pipeline keeps a free refit over the look at the logistic's even odds, whatever the score's
+    calibration (score round 2 changed it; the decision must not change silently)."""
+    from calib_core import pipeline
+    from calib_core.detect import image_score
+
+    base = {"center": [1.0, 2.0], "radius_px": 60.0, "outline_coverage": 0.8, "edge_rms_px": 0.5,
+            "outside_mismatch": 0.1, "edge_contrast": 12.0, "runner_up_ratio": 0.0}
+    entries = [dict(base, outline_coverage=c, edge_rms_px=r) for c in (0.5, 0.7, 0.9) for r in (0.3, 0.6, 0.9)]
+    a, b = image_score.PLATT  # the first round's rule: score (Platt line) >= CLEAR_SCORE
+    old = [1 / (1 + np.exp(-(a * image_score.entry_logit(e) + b))) >= pipeline.CLEAR_SCORE for e in entries]
+    assert any(old) and not all(old)
+    assert [pipeline._clear_refit(e) for e in entries] == old
+    monkeypatch.setattr(image_score, "CALIBRATION", (5.0, 0.1, 0.0))
+    assert [pipeline._clear_refit(e) for e in entries] == old
+    assert pipeline._clear_refit({"center": [1, 2], "score": 0.9}) and not pipeline._clear_refit({"score": 0.5})
