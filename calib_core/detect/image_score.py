@@ -1,8 +1,9 @@
 """The image detection's score as a probability: P(the detection is the sphere, within 3 px).
 
 Two stages. A logistic model on features of the accepted outline (COEF; fitted on synthetic
-single-image cases, training seeds 0-39, the second-round fit), then a monotone recalibration
-of its logit (PLATT: p = sigmoid(a * logit + b)) fitted by ``benchmarks/fit_image_score.py``
+single-image cases, training seeds 0-39, the second-round fit), then a recalibration of its
+logit, monotone in it (CALIBRATION since score round 2, with a capped size term, see below;
+PLATT: p = sigmoid(a * logit + b) before, kept for comparison) fitted by ``benchmarks/fit_image_score.py``
 on the free search in training data: generated sessions of the holder / room presets (seeds
 1-3, which the logistic never saw) and the single-image cases (seeds 0-39). Hard negatives
 (the detector's verification run, as the sonar-guided look runs it, at the places of the
