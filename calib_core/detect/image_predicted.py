@@ -18,8 +18,10 @@ free parameter, so a short arc fixes the centre. Steps:
 A found outline has no probability (``score`` None: no calibration of the look exists yet);
 it records ``outline_seen`` (the share of the outline seen, discounted by its spread), shown
 under that name (:func:`calib_core.detect.reasons.score_text`), and ``range_prior_rel_sigma``:
-its size, hence its range, is pulled towards the prediction by the prior, so the one-camera
-apparent-size scale leaves its range out (:func:`calib_core.pipeline.correspondences`).
+its size, hence its range, follows the prediction's (the circle search of step 2 picks the edge
+points that fit the predicted radius; the prior of step 3 adds little: ``bench_predicted_look.py
+--range-bias``), so the one-camera apparent-size scale leaves its range out
+(:func:`calib_core.pipeline.correspondences`).
 
 The caller (:func:`calib_core.pipeline._resolve_ambiguous_images`) checks the result against the
 registration before keeping it; this module only looks.
@@ -245,7 +247,7 @@ def _verdict(cam, fit: ConeFit, support: float, k: int, R: float, sphere_radius_
     extras.update(range_sigma_m=round(rng_sigma, 5), angular_radius_deg=round(float(np.degrees(fit.a_rad)), 5),
                   outline_coverage=round(support, 3))
     # no probability (score None): the share of the outline seen, discounted by its spread (as the
-    # free search's fit score), under its own name; and the range marked as pulled to the prediction
+    # free search's fit score), under its own name; and the range marked as following the prediction
     extras.update({OUTLINE_SEEN_KEY: round(float(support * np.exp(-max(0.0, fit.sigma_px - 0.3) / 0.7)), 4),
                    RANGE_PRIOR_KEY: PRIOR_REL_SIGMA})
     return ImageDetection(found=True, center_uv_px=centre, cov_uv_px2=cov, score=None,

@@ -23,8 +23,10 @@ MM_CLOUD_MEDIAN_M = 250.0
 # spread) under this key, shown with OUTLINE_SEEN_LABEL wherever a score is shown ...
 OUTLINE_SEEN_KEY = "outline_seen"
 OUTLINE_SEEN_LABEL = "outline seen"
-# ... and its size (its range) pulled towards the prediction by a prior of this relative sigma:
-# such a range repeats the sonar's scale and is left out of the apparent-size scale
+# ... and, under this key (the value: the look's size prior, relative), a mark that its size (its
+# range) follows the prediction's (the look searches circles of the predicted size; slope ~1 in
+# bench_predicted_look.py --range-bias): such a range repeats the sonar's scale and is left out
+# of the apparent-size scale
 RANGE_PRIOR_KEY = "range_prior_rel_sigma"
 
 
@@ -89,8 +91,8 @@ def score_phrase(entry) -> str:
 
 
 def range_is_measured(entry) -> bool:
-    """Whether an image entry's ``range_m`` is the apparent size's own measure (not pulled
-    towards another sensor's prediction by a prior, see RANGE_PRIOR_KEY)."""
+    """Whether an image entry's ``range_m`` is the apparent size's own measure (not one that
+    follows another sensor's prediction, see RANGE_PRIOR_KEY)."""
     return isinstance(entry, dict) and not entry.get(RANGE_PRIOR_KEY)
 
 
