@@ -4,8 +4,9 @@ An ``auto`` entry records ``fingerprint: {digest, detector, files[, hint_uv_px, 
 - ``files``: {path relative to the session: "SHA256 SIZE MTIME_NS"} of every input file
   (image, cloud, intrinsics, background frames), one string each (detections.yaml of a
   100-capture session stays quick to parse);
-- ``detector``: the detector's version (sonarcal's version and a digest of the detector's
-  source code, so any change to a detector invalidates old entries);
+- ``detector``: the detector's version (sonarcal's version and a digest of the detectors'
+  source code and of the loaders their inputs pass through, so any change to either
+  invalidates old entries);
 - ``digest``: sha256 of the canonical JSON of the file digests and the parameters: the
   detector version, the sphere diameter, the beam width (sonar), the background window
   (image) and a refit hint (a sonar-guided second look), which is recorded with the entry.
@@ -36,16 +37,28 @@ def file_sha256(path: Path) -> str:
     return h.hexdigest()
 
 
+# the files whose code decides an automatic entry besides the detectors (relative to calib_core):
+# the loaders the inputs pass through (a changed image scaling, dropped "no return" points or a
+# kept distortion term changes what the detectors see from the same file) and the session-level
+# second looks
+DETECTOR_SOURCES = ("detect/*.py", "pipeline.py", "disambiguate.py", "disambiguate_sonar.py", "camera.py",
+                    "io/images.py", "io/clouds.py", "io/intrinsics.py")
+
+
+def source_digest(package_dir: Path) -> str:
+    """Digest of the DETECTOR_SOURCES under ``package_dir`` (a calib_core folder)."""
+    h = hashlib.sha256()
+    for pattern in DETECTOR_SOURCES:
+        for p in sorted(package_dir.glob(pattern)):
+            h.update(p.relative_to(package_dir).as_posix().encode())
+            h.update(p.read_bytes())
+    return h.hexdigest()[:16]
+
+
 @functools.lru_cache(maxsize=1)
 def detector_version() -> str:
-    """sonarcal's version and a digest of the detector package's source files."""
-    h = hashlib.sha256()
-    here = Path(__file__).resolve().parent
-    session_level = [here / "pipeline.py", here / "disambiguate.py", here / "disambiguate_sonar.py"]
-    for p in sorted((here / "detect").glob("*.py")) + session_level:
-        h.update(p.name.encode())
-        h.update(p.read_bytes())
-    return f"{__version__}+{h.hexdigest()[:16]}"
+    """sonarcal's version and a digest of the detectors' source files (DETECTOR_SOURCES)."""
+    return f"{__version__}+{source_digest(Path(__file__).resolve().parent)}"
 
 
 def _files(paths: list[Path]) -> list[Path]:

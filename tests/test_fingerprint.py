@@ -84,3 +84,19 @@ def test_parallel_detection_equals_sequential(small):
     _, session, dets = small
     par = detect_session(SessionData(session), {}, workers=2)
     assert _strip(par) == _strip(dets)
+
+
+@pytest.mark.parametrize("rel", ["detect/sonar.py", "io/images.py", "io/clouds.py", "io/intrinsics.py", "camera.py"])
+def test_detector_version_follows_the_loaders_the_inputs_pass_through(tmp_path, rel):
+    """A changed loader (16-bit scaling, "no return" points dropped, distortion terms kept)
+    changes what the detectors see from the same files: old auto entries must not be reused."""
+    import shutil
+    from pathlib import Path
+
+    pkg = tmp_path / "calib_core"
+    shutil.copytree(Path(fpm.__file__).resolve().parent, pkg, ignore=shutil.ignore_patterns("__pycache__"))
+    before = fpm.source_digest(pkg)
+    assert fpm.source_digest(pkg) == before
+    (pkg / rel).write_text((pkg / rel).read_text() + "\n# changed\n")
+    assert fpm.source_digest(pkg) != before
+    assert fpm.detector_version().endswith(fpm.source_digest(Path(fpm.__file__).resolve().parent))
