@@ -153,3 +153,19 @@ def test_a_resized_frame_gets_a_hint_to_scale_the_intrinsics(tmp_path, rgb):
     with pytest.raises(SessionError) as ei:
         load_image(tmp_path / "half.png", expected_wh=(80, 45))
     assert "scaled by" not in ei.value.problem
+
+
+def test_16bit_background_and_capture_of_one_camera_share_a_scale(tmp_path):
+    """A 12-bit camera's background frame (brightest pixel 1900) and capture (a bright sphere at
+    4000) must load on one grey scale: background subtraction compares them pixel by pixel."""
+    scene = np.tile(np.linspace(200, 1900, 40).astype(np.uint16), (30, 1))
+    capture = scene.copy()
+    capture[10:20, 10:20] = 4000
+    cv2.imwrite(str(tmp_path / "bg.png"), scene)
+    cv2.imwrite(str(tmp_path / "cap.png"), capture)
+    bg = load_image(tmp_path / "bg.png")[:, :, 0].astype(int)
+    cap = load_image(tmp_path / "cap.png")[:, :, 0].astype(int)
+    outside = np.ones(scene.shape, bool)
+    outside[10:20, 10:20] = False
+    assert np.abs(bg - cap)[outside].max() <= 1
+    assert cap.max() == 249  # 4000 of 4095

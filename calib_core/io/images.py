@@ -141,12 +141,19 @@ def load_image(path: str | Path, expected_wh: tuple[int, int] | None = None) -> 
     return _to_rgb8(path, img)
 
 
+# the bit depths cameras store in 16-bit files (PNG/TIFF)
+SENSOR_BITS = (8, 10, 12, 14, 16)
+
+
 def _container_max(img16: np.ndarray) -> int:
     """Full scale of a 16-bit image: machine-vision cameras store 10- or 12-bit pixels in
     16-bit files (PNG/TIFF), so a 12-bit frame whose brightest pixel is 4000 is scaled by
     255/4095, not 255/65535 (which would leave it at 0-16 DN). The bit depth is the smallest
-    one, at least 8, that holds the brightest pixel."""
-    bits = max(8, int(img16.max()).bit_length()) if img16.size else 16
+    sensor depth (SENSOR_BITS) that holds the brightest pixel: not the brightest pixel's own
+    bit length, which would put a background frame without the bright sphere (brightest 1900,
+    11 bits) on another scale than the capture (4000, 12 bits) of the same camera."""
+    need = int(img16.max()).bit_length() if img16.size else 16
+    bits = next(b for b in SENSOR_BITS if b >= need)
     return (1 << bits) - 1
 
 
