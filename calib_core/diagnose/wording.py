@@ -2,13 +2,16 @@
 
 from __future__ import annotations
 
+from calib_core.detect.reasons import OUTLINE_SEEN_LABEL
+
 CAUSES = ("image", "sonar", "moved")
 
-THRESHOLDS_NOTE = ("good: residual below 2 px and detector score 0.7 or more; doubtful: residual 2-5 px or "
-                   "score 0.4-0.7; bad: residual above 5 px, score below 0.4, or flagged; an entry without a score "
-                   "(\"outline seen\": the look where the sonar predicts the sphere) by its residual alone")
 RESIDUAL_GOOD_PX, RESIDUAL_BAD_PX = 2.0, 5.0
 SCORE_GOOD, SCORE_BAD = 0.7, 0.4
+THRESHOLDS_NOTE = (f"good: residual below {RESIDUAL_GOOD_PX:g} px and detector score {SCORE_GOOD:g} or more; doubtful: "
+                   f"residual {RESIDUAL_GOOD_PX:g}-{RESIDUAL_BAD_PX:g} px or score {SCORE_BAD:g}-{SCORE_GOOD:g}; bad: "
+                   f"residual above {RESIDUAL_BAD_PX:g} px, score below {SCORE_BAD:g}, or flagged; an entry without a "
+                   f"score (\"{OUTLINE_SEEN_LABEL}\": the look where the sonar predicts the sphere) by its residual alone")
 
 RESIDUAL_LABEL = "residual px: |image centre - sonar centre projected with the current calibration|"
 
