@@ -121,3 +121,22 @@ def test_camera_names_from_topics():
     assert camera_name("/image_raw", set()) == "cam"
     assert camera_name("/cam1/image_raw", {"cam1"}) == "cam1_2"
     assert camera_name("/we ird:name/image", set()) == "we_ird_name"
+
+
+def test_mono16_message_is_scaled_as_a_16bit_file(tmp_path):
+    """A 12-bit camera's mono16 frame from a bag gets the grey levels the same frame gets from a
+    16-bit PNG (one rule: calib_core.io.images.to_uint8_16), not 0-16 DN."""
+    from types import SimpleNamespace
+
+    import cv2
+
+    from calib_core.ingest.rosmsg import image_from_msg
+    from calib_core.io.images import load_image
+
+    grey = np.tile(np.linspace(100, 4000, 40).astype(np.uint16), (30, 1))
+    msg = SimpleNamespace(encoding="mono16", height=30, width=40, step=80, is_bigendian=0,
+                          data=np.frombuffer(grey.astype("<u2").tobytes(), np.uint8))
+    from_bag = image_from_msg(msg, "sensor_msgs/msg/Image")
+    cv2.imwrite(str(tmp_path / "g.png"), grey)
+    np.testing.assert_array_equal(from_bag, load_image(tmp_path / "g.png"))
+    assert from_bag.max() == 249

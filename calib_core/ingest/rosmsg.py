@@ -15,6 +15,7 @@ import numpy as np
 
 from calib_core import MAX_IMAGE_PIXELS
 from calib_core.camera import CameraModel
+from calib_core.io.images import to_uint8_16
 
 POINTCLOUD2 = "sensor_msgs/msg/PointCloud2"
 IMAGE = "sensor_msgs/msg/Image"
@@ -93,7 +94,7 @@ def image_from_msg(msg, msgtype: str) -> np.ndarray:
     if enc in ("mono16", "16uc1"):
         big = bool(msg.is_bigendian)
         img = np.frombuffer(rows[:, : w * 2].tobytes(), dtype=">u2" if big else "<u2").reshape(h, w)
-        return np.repeat((img >> 8).astype(np.uint8)[..., None], 3, axis=2)
+        return np.repeat(to_uint8_16(img)[..., None], 3, axis=2)
     bayer = {"bayer_rggb8": cv2.COLOR_BayerRG2RGB, "bayer_bggr8": cv2.COLOR_BayerBG2RGB,
              "bayer_gbrg8": cv2.COLOR_BayerGB2RGB, "bayer_grbg8": cv2.COLOR_BayerGR2RGB}
     if enc in bayer:

@@ -157,10 +157,16 @@ def _container_max(img16: np.ndarray) -> int:
     return (1 << bits) - 1
 
 
+def to_uint8_16(img16: np.ndarray) -> np.ndarray:
+    """A 16-bit image (any channels) as uint8 on its full scale (:func:`_container_max`): the one
+    16-to-8-bit rule of files and of bag messages (mono16)."""
+    return cv2.convertScaleAbs(img16, alpha=255.0 / _container_max(img16))  # rounds and saturates, no float copy
+
+
 def _to_rgb8(path: Path, img: np.ndarray) -> np.ndarray:
     """Any decoded OpenCV image (BGR/BGRA/grey, 8/16-bit or float) -> RGB uint8."""
     if img.dtype == np.uint16:
-        img = cv2.convertScaleAbs(img, alpha=255.0 / _container_max(img))  # rounds and saturates, no float copy
+        img = to_uint8_16(img)
     elif img.dtype in (np.float32, np.float64):
         np.nan_to_num(img, copy=False, posinf=0.0, neginf=0.0)
         np.clip(img, 0, None, out=img)
