@@ -335,7 +335,7 @@ class SessionCheck:
     problems: list[SessionError]
     cameras: dict[str, CameraModel] = field(default_factory=dict)
     cloud_points: dict[str, int] = field(default_factory=dict)
-    cloud_no_return: dict[str, int] = field(default_factory=dict)  # NaN/inf rows dropped, per capture
+    cloud_no_return: dict[str, int] = field(default_factory=dict)  # NaN/inf or (0, 0, 0) rows dropped, per capture
 
 
 def validate_session(folder: str | Path) -> SessionCheck:

@@ -45,7 +45,7 @@ def run(args) -> int:
 
 
 def _points_cell(check, cid: str) -> str:
-    """Point count, and how many rows held no return (NaN/inf, left out)."""
+    """Point count, and how many rows held no return (NaN/inf or (0, 0, 0), left out)."""
     n = check.cloud_points.get(cid)
     if n is None:
         return "?"

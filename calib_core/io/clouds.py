@@ -48,7 +48,8 @@ def load_cloud(path: str | Path, allow_nonfinite: bool = True) -> Cloud:
     "no return" in organised clouds (PCL, depth cameras, LiDAR drivers): they are dropped and
     counted (``Cloud.n_without_return``), as are points at exactly (0, 0, 0), the sensor's own
     origin; a cloud with nothing else is refused.
-    ``allow_nonfinite=False`` refuses any such point instead."""
+    ``allow_nonfinite=False`` refuses NaN or infinite points instead (points at exactly
+    (0, 0, 0) are dropped and counted either way)."""
     path = Path(path)
     if not path.is_file():
         raise SessionError(path, "point cloud file not found")
