@@ -140,3 +140,19 @@ def test_mono16_message_is_scaled_as_a_16bit_file(tmp_path):
     cv2.imwrite(str(tmp_path / "g.png"), grey)
     np.testing.assert_array_equal(from_bag, load_image(tmp_path / "g.png"))
     assert from_bag.max() == 249
+
+
+def test_compressed_16bit_png_message_is_scaled_as_a_16bit_file(tmp_path):
+    from types import SimpleNamespace
+
+    import cv2
+
+    from calib_core.ingest.rosmsg import image_from_msg
+    from calib_core.io.images import load_image
+
+    grey = np.tile(np.linspace(100, 4000, 40).astype(np.uint16), (30, 1))
+    ok, buf = cv2.imencode(".png", grey)
+    msg = SimpleNamespace(format="mono16; png compressed", data=buf.ravel())
+    from_bag = image_from_msg(msg, "sensor_msgs/msg/CompressedImage")
+    cv2.imwrite(str(tmp_path / "g.png"), grey)
+    np.testing.assert_array_equal(from_bag, load_image(tmp_path / "g.png"))

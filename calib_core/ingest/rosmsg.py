@@ -113,9 +113,13 @@ def _decode_compressed(msg) -> np.ndarray:
         raise ValueError(f"compressed image format '{msg.format}' cannot be decoded") from None
     if w * h > MAX_PIXELS:
         raise ValueError(f"compressed image claims {w} x {h} pixels")
-    img = cv2.imdecode(raw, cv2.IMREAD_COLOR)
+    img = cv2.imdecode(raw, cv2.IMREAD_COLOR | cv2.IMREAD_ANYDEPTH)  # a 16-bit PNG keeps its depth
     if img is None:
         raise ValueError(f"compressed image ('{msg.format}') is corrupt or truncated")
+    if img.dtype == np.uint16:
+        img = to_uint8_16(img)  # the 16-bit files' rule
+    elif img.dtype != np.uint8:
+        raise ValueError(f"compressed image ('{msg.format}') has {img.dtype} pixels (use 8- or 16-bit)")
     return cv2.cvtColor(img, cv2.COLOR_BGR2RGB)
 
 
