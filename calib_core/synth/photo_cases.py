@@ -23,6 +23,7 @@ import numpy as np
 
 from calib_core.synth import range_scenes, room
 from calib_core.synth.camera_render import render_radiance
+from calib_core.synth.occlusion import occluded_fraction
 from calib_core.synth.photo import BallLook, Photo, motion_composite
 from calib_core.synth.rig import sample_target_center
 from calib_core.synth.scene import Scene
@@ -61,6 +62,13 @@ def _metered(rng, photo: Photo, L: np.ndarray) -> Photo:
     return replace(photo, exposure=float(np.clip(target / max(float(L.mean()), 1e-3), 0.4, 3.0)))
 
 
+def _clear_view(static: list, ball, T_wc) -> list:
+    """The static parts minus clutter that would hide part of the ball (the case shows it whole,
+    apart from its own holder)."""
+    return [p for p in static if p.tag != "clutter"
+            or occluded_fraction(Scene((ball, p)), 0, T_wc, ball.center_m, ball.radius_m) == 0]
+
+
 def _render(rng, parts_static, parts_ball, with_ball, cam, T_wc, air, photo, aa):
     photo = photo if with_ball else replace(photo, occluders=())
     scene = Scene(tuple(parts_static + (parts_ball if with_ball else [])))
@@ -97,6 +105,7 @@ def glossy(rng, rig, cam, T_wc, scale, with_ball):
     alb, look = _gym_look(rng, c, radius)
     style = dict(room.ball_style(rng), albedo=alb, foam_contrast=float(rng.uniform(0.0, 0.05)), holder="stick")
     ball = room.ball_parts(rng, style, c, radius, floor_z, eye)[0]
+    static = _clear_view(static, ball, T_wc)
     parts = [ball] + ([range_scenes.chair(rng, c, radius, floor_z, eye)] if on_chair else [])
     air = room.room_air(rng)
     photo = _photo(rng, c, radius, eye, look, scale)
@@ -130,6 +139,7 @@ def panels(rng, rig, cam, T_wc, scale, with_ball):
                  holder="rest" if where == "rest" else "stick")
     parts = room.ball_parts(rng, style, c, radius, floor_z, eye)
     parts = parts[:1] if where == "floor" else parts
+    static = _clear_view(static, parts[0], T_wc)
     air = room.room_air(rng)
     photo = _photo(rng, c, radius, eye, look, scale)
     L, _, _, photo = _render(rng, static, parts, with_ball, cam, T_wc, air, photo, 3)
@@ -145,6 +155,7 @@ def motion(rng, rig, cam, T_wc, scale, with_ball):
     static = room.room_scene(rng, floor_z, [c])
     style = dict(room.ball_style(rng), holder="stick")
     parts = room.ball_parts(rng, style, c, radius, floor_z, eye)
+    static = _clear_view(static, parts[0], T_wc)
     look = BallLook(tuple(c), radius, ks=float(rng.uniform(0.0, 0.15)), shininess=20.0,
                     seam_dir=_rand_dir(rng) if rng.random() < 0.3 else None,
                     logo_dir=_rand_dir(rng) if rng.random() < 0.4 else None, logo_deg=float(rng.uniform(12, 25)))
