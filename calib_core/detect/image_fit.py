@@ -61,10 +61,10 @@ TIGHT_MIN_SUPPORT = 0.6
 EDGE_NOISE_FACTOR = 2.5
 PASS1_MAX_RMS_PX = 2.5
 # share of the rays pass 1 must put on its outline to go on to pass 2 (which then judges the
-# support): less when that arc is very round (a dark ball whose lower outline merges with its
-# shadow and whose sides touch a backrest shows a clean arc of a third of its outline)
+# support). Tried: 0.3 when that arc is very round (a dark ball whose lower outline merges
+# with its shadow shows a clean arc of a third of it): it found glossy s1031 and s1034, but
+# made a ball-free clutter image (s1023, plain brick) a detection at score 1.00: not kept.
 PASS1_MIN_ARC = 0.4
-PASS1_CLEAN_ARC = 0.3
 # the pass-1 reading "colour edge nearest the candidate's size" is kept only where its outline
 # confirms the candidate (centre within this share of the radius, radius within this share)
 NEAR_SHIFT = 0.25
@@ -232,8 +232,7 @@ def _first_pass(cam, sig: _Signal, cand: Candidate, R: float, band, a_range_rad,
             if (near is not None and (fit1 is None or _quality(near) > _quality(fit1))
                     and _agrees(cam, near, cand, R)):
                 fit1 = near
-    if fit1 is None or fit1.inliers.sum() < (PASS1_CLEAN_ARC if fit1.sigma_px <= 0.5 * clean_rms_px(R)
-                                             else PASS1_MIN_ARC) * seg_in.sum():
+    if fit1 is None or fit1.inliers.sum() < PASS1_MIN_ARC * seg_in.sum():
         return "no round outline"
     if fit1.sigma_px > max(PASS1_MAX_RMS_PX, PASS1_MAX_RMS_FRAC * R):
         # the refinement narrows the band around this outline; it cannot turn an outline this
