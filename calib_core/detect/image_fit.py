@@ -60,15 +60,6 @@ TIGHT_MIN_SUPPORT = 0.6
 # texture); a median of a noise-only gradient magnitude is ~1.5 sigma, so this is ~4 sigma
 EDGE_NOISE_FACTOR = 2.5
 PASS1_MAX_RMS_PX = 2.5
-# share of the rays pass 1 must put on its outline to go on to pass 2 (which then judges the
-# support). Tried: 0.3 when that arc is very round (a dark ball whose lower outline merges
-# with its shadow shows a clean arc of a third of it): it found glossy s1031 and s1034, but
-# made a ball-free clutter image (s1023, plain brick) a detection at score 1.00: not kept.
-PASS1_MIN_ARC = 0.4
-# the pass-1 reading "colour edge nearest the candidate's size" is kept only where its outline
-# confirms the candidate (centre within this share of the radius, radius within this share)
-NEAR_SHIFT = 0.25
-NEAR_SIZE = 0.25
 PASS1_MAX_RMS_FRAC = 0.04
 
 
@@ -224,15 +215,7 @@ def _first_pass(cam, sig: _Signal, cand: Candidate, R: float, band, a_range_rad,
         alt = _pass1(cam, pts, dirs, t, gc, seg_in, "strongest", a_range_rad, R, rng)
         if alt is not None and (fit1 is None or _quality(alt) > _quality(fit1)):
             fit1 = alt
-        if fit1 is None or fit1.inliers.sum() < 0.6 * seg_in.sum():
-            # things touching the sphere (a backrest, a seat, its shadow) put stronger edges just
-            # outside the outline, a highlight or markings inside: the edge nearest the
-            # candidate's size is the third reading (the vote and disc radii are good to ~10 %)
-            near = _pass1(cam, pts, dirs, t, gc, seg_in, "nearest", a_range_rad, R, rng)
-            if (near is not None and (fit1 is None or _quality(near) > _quality(fit1))
-                    and _agrees(cam, near, cand, R)):
-                fit1 = near
-    if fit1 is None or fit1.inliers.sum() < PASS1_MIN_ARC * seg_in.sum():
+    if fit1 is None or fit1.inliers.sum() < 0.4 * seg_in.sum():
         return "no round outline"
     if fit1.sigma_px > max(PASS1_MAX_RMS_PX, PASS1_MAX_RMS_FRAC * R):
         # the refinement narrows the band around this outline; it cannot turn an outline this
@@ -345,17 +328,6 @@ def _pass2(cam, sig, fit1: ConeFit, R: float, a_range_rad, rng):
         if fit is not None and (best is None or _quality(fit) > _quality(best[0])):
             best = (fit, ok2, s2, k2)
     return best
-
-
-def _agrees(cam, fit: ConeFit, cand: Candidate, R: float) -> bool:
-    """The fit is the candidate's own outline: centre within NEAR_SHIFT x R of the candidate's,
-    radius within NEAR_SIZE of it (a reading that trusts the candidate's size must confirm it)."""
-    sil = silhouette_uv(cam, fit.w, fit.a_rad, n=36)
-    if not np.isfinite(sil).all():
-        return False
-    c = sil.mean(axis=0)
-    r = float(np.mean(np.linalg.norm(sil - c, axis=1)))
-    return bool(np.hypot(*(c - cand.centre_px)) <= NEAR_SHIFT * R and abs(r / R - 1.0) <= NEAR_SIZE)
 
 
 def _quality(fit: ConeFit) -> float:
