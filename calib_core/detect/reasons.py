@@ -14,6 +14,20 @@ from collections import Counter
 
 # a detection whose reprojection misses it by more than this is shown as a problem (px)
 RESIDUAL_PROBLEM_PX = 5.0
+# a cloud whose points lie a median this far from the sensor (m) is not a calibration scan in
+# metres: a lab or harbour scene in millimetres lies 500-20000 "m" away
+MM_CLOUD_MEDIAN_M = 250.0
+
+# An image entry from the look at the sonar-predicted place and size (calib_core.detect.image_predicted)
+# has no probability: no ``score``, but the share of its outline seen (discounted by the outline's
+# spread) under this key, shown with OUTLINE_SEEN_LABEL wherever a score is shown ...
+OUTLINE_SEEN_KEY = "outline_seen"
+OUTLINE_SEEN_LABEL = "outline seen"
+# ... and, under this key (the value: the look's size prior, relative), a mark that its size (its
+# range) follows the prediction's (the look searches circles of the predicted size; slope ~1 in
+# bench_predicted_look.py --range-bias): such a range repeats the sonar's scale and is left out
+# of the apparent-size scale
+RANGE_PRIOR_KEY = "range_prior_rel_sigma"
 
 
 def reason_kind(reason: str) -> str:
@@ -51,6 +65,37 @@ def entry_note(entry) -> str:
     return entry.get("reason") or ""
 
 
+def entry_score(entry) -> float | None:
+    """The entry's probability of being right (``score``), or None when it has none (a look at
+    the predicted place, a click, a missing entry)."""
+    v = entry.get("score") if isinstance(entry, dict) else None
+    return float(v) if isinstance(v, (int, float)) and not isinstance(v, bool) else None
+
+
+def score_text(entry) -> str:
+    """The score column of a detection table: "0.93" (a probability); "outline seen 62 %" for a
+    look at the predicted place, which has no probability; "" when neither is known."""
+    p = entry_score(entry)
+    if p is not None:
+        return f"{p:.2f}"
+    seen = entry.get(OUTLINE_SEEN_KEY) if isinstance(entry, dict) else None
+    if isinstance(seen, (int, float)) and not isinstance(seen, bool):
+        return f"{OUTLINE_SEEN_LABEL} {100 * float(seen):.0f} %"
+    return ""
+
+
+def score_phrase(entry) -> str:
+    """"score 0.93", "outline seen 62 %" (a look at the predicted place) or "" (see score_text)."""
+    text = score_text(entry)
+    return f"score {text}" if entry_score(entry) is not None else text
+
+
+def range_is_measured(entry) -> bool:
+    """Whether an image entry's ``range_m`` is the apparent size's own measure (not one that
+    follows another sensor's prediction, see RANGE_PRIOR_KEY)."""
+    return isinstance(entry, dict) and not entry.get(RANGE_PRIOR_KEY)
+
+
 def residual_problem(sensor: str, residual_px) -> str | None:
     """"k1: detection 389 px from the calibrated reprojection" when it is large, else None."""
     if residual_px is None:
@@ -65,3 +110,19 @@ def count_reasons(reasons) -> str:
     """"no round outline: 2, sphere cut by the image border: 1" (most common first)."""
     c = Counter(reason_kind(r) for r in reasons if r)
     return ", ".join(f"{k}: {n}" for k, n in c.most_common())
+
+
+def cloud_units_reason(points_sensor_m, sphere_diameter_m: float) -> str | None:
+    """Why a cloud probably is not in metres, or None: its points lie a median of more than
+    MM_CLOUD_MEDIAN_M from the sensor while the sphere is a few metres at most (a cloud
+    written in millimetres, as some depth-camera and CAD tools do)."""
+    import numpy as np
+
+    P = np.asarray(points_sensor_m, float).reshape(-1, 3)
+    if len(P) == 0 or not sphere_diameter_m < 5.0:
+        return None
+    d = float(np.median(np.linalg.norm(P[:: max(1, len(P) // 20000)], axis=1)))
+    if not d > MM_CLOUD_MEDIAN_M:
+        return None
+    return (f"the cloud's points lie a median {d:.0f} m from the sensor: is it in millimetres? "
+            f"Clouds must be in metres (divide by 1000)")
