@@ -17,7 +17,7 @@ import numpy as np
 from calib_core.camera import CameraModel
 from calib_core.detect.image_cone import (ConeFit, centre_uv_and_cov, fit_cone, normalize_near,
                                           silhouette_uv, silhouette_xy)
-from calib_core.detect.image_edges import (gradient_magnitude, outward_normals, pick_edges,
+from calib_core.detect.image_edges import (edge_peaks, gradient_magnitude, outward_normals, pick_edges,
                                            ray_directions, sample_profiles, smooth_roi)
 from calib_core.detect.image_region import Candidate
 
@@ -212,16 +212,23 @@ def _first_pass(cam, sig: _Signal, cand: Candidate, R: float, band, a_range_rad,
         # without a background, clutter just outside the outline also makes edges: the
         # strongest colour edge per ray is the other reading; keep the rounder one
         gc = gradient_magnitude(sig.colour_profiles(pts, dirs, t), step)
-        alt = _pass1(cam, pts, dirs, t, gc, seg_in, "strongest", a_range_rad, R, rng)
-        if alt is not None and (fit1 is None or _quality(alt) > _quality(fit1)):
-            fit1 = alt
-    if fit1 is None or fit1.inliers.sum() < 0.4 * seg_in.sum():
-        return "no round outline"
-    if fit1.sigma_px > max(PASS1_MAX_RMS_PX, PASS1_MAX_RMS_FRAC * R):
-        # the refinement narrows the band around this outline; it cannot turn an outline this
-        # ragged into a round one (saves the cost of pass 2 on clutter)
+        for rule in ("strongest", "several"):
+            if rule == "several" and _pass1_usable(fit1, seg_in, R):
+                break
+            alt = _pass1(cam, pts, dirs, t, gc, seg_in, rule, a_range_rad, R, rng)
+            if alt is not None and (fit1 is None or _quality(alt) > _quality(fit1)):
+                fit1 = alt
+    if not _pass1_usable(fit1, seg_in, R):
+        # too little of the rays on it, or so ragged that the refinement, which narrows the
+        # band around this outline, cannot make it round (saves the cost of pass 2 on clutter)
         return "no round outline"
     return fit1
+
+
+def _pass1_usable(fit1: ConeFit | None, seg_in: np.ndarray, R: float) -> bool:
+    """A pass-1 fit worth refining: on 40 % of the rays and not too ragged."""
+    return (fit1 is not None and fit1.inliers.sum() >= 0.4 * seg_in.sum()
+            and fit1.sigma_px <= max(PASS1_MAX_RMS_PX, PASS1_MAX_RMS_FRAC * R))
 
 
 def _fitted(cam, sig: _Signal, p2, R: float, sphere_radius_m: float) -> tuple[CandidateFit, float]:
@@ -313,21 +320,28 @@ def _pass2(cam, sig, fit1: ConeFit, R: float, a_range_rad, rng):
         uv2 = sil[ok2] + te[ok2, None] * nrm[ok2]
         # edge points are within a few px of the model outline: Newton from its normalised points
         xy2 = normalize_near(cam, uv2, sil_xy[ok2], iterations=3)
-        kw = dict(inlier_px=max(1.0, 0.01 * R), rng=rng, corr_points=max(1.0, CORR_LENGTH_PX * k2 / perim))
-        fit = fit_cone(cam, xy2, a_range_rad, start=(fit1.w, fit1.a_rad), **kw)
-        if fit is None or fit.sigma_px > clean_rms_px(R):
-            # edges of things touching the sphere (a seat, a backrest) pulled the fit off:
-            # search again for the cone the tightest majority of the edges lie on
-            # (it must be very round on the edges it keeps: a circle forced onto a box or onto
-            # chair legs keeps a few tangent stretches, each off by up to the band)
-            alt = fit_cone(cam, xy2, a_range_rad, tight=True, **kw)
-            if (alt is not None and alt.sigma_px <= TIGHT_RMS_FRACTION * clean_rms_px(R)
-                    and alt.inliers.sum() >= TIGHT_MIN_SUPPORT * k2
-                    and (fit is None or _quality(alt) > _quality(fit))):
-                fit = alt
+        fit = _pass2_fit(cam, xy2, fit1, R, a_range_rad, rng, k2, perim)
         if fit is not None and (best is None or _quality(fit) > _quality(best[0])):
             best = (fit, ok2, s2, k2)
     return best
+
+
+def _pass2_fit(cam, xy2, fit1: ConeFit, R: float, a_range_rad, rng, k2: int, perim: float) -> ConeFit | None:
+    """The pass-2 cone on one reading's edge points: refined from ``fit1``, or, when that is
+    not clean, the tightest majority's cone if it is very round."""
+    kw = dict(inlier_px=max(1.0, 0.01 * R), rng=rng, corr_points=max(1.0, CORR_LENGTH_PX * k2 / perim))
+    fit = fit_cone(cam, xy2, a_range_rad, start=(fit1.w, fit1.a_rad), **kw)
+    if fit is None or fit.sigma_px > clean_rms_px(R):
+        # edges of things touching the sphere (a seat, a backrest) pulled the fit off:
+        # search again for the cone the tightest majority of the edges lie on
+        # (it must be very round on the edges it keeps: a circle forced onto a box or onto
+        # chair legs keeps a few tangent stretches, each off by up to the band)
+        alt = fit_cone(cam, xy2, a_range_rad, tight=True, **kw)
+        if (alt is not None and alt.sigma_px <= TIGHT_RMS_FRACTION * clean_rms_px(R)
+                and alt.inliers.sum() >= TIGHT_MIN_SUPPORT * k2
+                and (fit is None or _quality(alt) > _quality(fit))):
+            fit = alt
+    return fit
 
 
 def _quality(fit: ConeFit) -> float:
@@ -336,7 +350,9 @@ def _quality(fit: ConeFit) -> float:
 
 
 def _pass1(cam, pts, dirs, t, g, seg_in, rule, a_range_rad, R, rng) -> ConeFit | None:
-    """Pass-1 cone fit to one edge per ray (``rule`` of :func:`pick_edges`)."""
+    """Pass-1 cone fit to one edge per ray (``rule`` of :func:`pick_edges`, or "several")."""
+    if rule == "several":
+        return _pass1_several(cam, pts, dirs, t, g, seg_in, a_range_rad, R, rng)
     t1, _ = pick_edges(t, g, rule, 0.35 * float(np.median(g.max(axis=1)[seg_in])))
     ok = np.isfinite(t1) & seg_in
     ok[ok] = cam.in_image(pts[ok] + t1[ok, None] * dirs[ok], margin_px=2.0)
@@ -345,6 +361,38 @@ def _pass1(cam, pts, dirs, t, g, seg_in, rule, a_range_rad, R, rng) -> ConeFit |
     uv1 = pts[ok] + t1[ok, None] * dirs[ok]
     return fit_cone(cam, normalize_near(cam, uv1), a_range_rad, inlier_px=max(1.5, 0.04 * R), rng=rng,
                     max_iter=6)
+
+
+# the "several" reading: this many strongest edges per ray, down to this share of the typical
+# strongest edge of a ray, and this many 3-point hypotheses (most points are not the outline)
+SEVERAL_PEAKS = 4
+SEVERAL_MIN_SHARE = 0.15
+SEVERAL_HYPOTHESES = 512
+
+
+def _pass1_several(cam, pts, dirs, t, g, seg_in, a_range_rad, R, rng) -> ConeFit | None:
+    """Pass-1 cone fit to the few strongest edges of every ray, then to one edge per ray
+    (the one nearest to that cone): where the sphere's outline is neither the outermost nor
+    the strongest edge (a dark ball before a dark backrest whose own edge is stronger and
+    farther out)."""
+    te = edge_peaks(t, g, SEVERAL_MIN_SHARE * float(np.median(g.max(axis=1)[seg_in])), SEVERAL_PEAKS)
+    ray = np.broadcast_to(np.arange(len(te))[:, None], te.shape)
+    ok = np.isfinite(te) & seg_in[:, None]
+    uv = pts[ray[ok]] + te[ok, None] * dirs[ray[ok]]
+    inside = cam.in_image(uv, margin_px=2.0)
+    uv, ray = uv[inside], ray[ok][inside]
+    if len(np.unique(ray)) < 12:
+        return None
+    xy = normalize_near(cam, uv)
+    band = max(1.5, 0.04 * R)
+    fit = fit_cone(cam, xy, a_range_rad, inlier_px=band, rng=rng, max_iter=6, n_hyp=SEVERAL_HYPOTHESES)
+    if fit is None:
+        return None
+    # one edge per ray: the nearest to the cone
+    order = np.lexsort((np.abs(fit.residuals_px), ray))
+    first = order[np.r_[True, ray[order][1:] != ray[order][:-1]]]
+    return fit_cone(cam, xy[first], a_range_rad, inlier_px=band, rng=rng, max_iter=6,
+                    start=(fit.w, fit.a_rad))
 
 
 def _outside_mismatch(sig: _Signal, sil: np.ndarray, nrm: np.ndarray, R: float) -> float:
