@@ -44,6 +44,7 @@ class ConeFit:
     sigma_px: float
     cov_params: np.ndarray
     basis: np.ndarray
+    reading: str = ""  # which edges it was fitted to, when a caller records it
 
     @property
     def inlier_fraction(self) -> float:

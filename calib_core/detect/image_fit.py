@@ -184,6 +184,12 @@ def refine_candidate(image: np.ndarray, cam: CameraModel, cand: Candidate, spher
         return CandidateFit(False, "no round outline")
     res, outside_bad = _fitted(cam, sig, p2, R, sphere_radius_m)
     _judge(cam, res, R, outside_bad, sig.diff is not None)
+    if res.ok and fit1.reading == "several" and sig.diff is None \
+            and _inside_colour_agreement(sig, res.silhouette_px, R) < SEVERAL_MIN_INSIDE_AGREEMENT:
+        # a circle picked from several edges per ray can run through unrelated things (a block's
+        # corner, mortar lines): a sphere's inside has one hue all along its outline (shading
+        # changes only the brightness)
+        res.ok, res.credible, res.reason = False, False, "no round outline"
     return res
 
 
@@ -391,8 +397,26 @@ def _pass1_several(cam, pts, dirs, t, g, seg_in, a_range_rad, R, rng) -> ConeFit
     # one edge per ray: the nearest to the cone
     order = np.lexsort((np.abs(fit.residuals_px), ray))
     first = order[np.r_[True, ray[order][1:] != ray[order][:-1]]]
-    return fit_cone(cam, xy[first], a_range_rad, inlier_px=band, rng=rng, max_iter=6,
-                    start=(fit.w, fit.a_rad))
+    fit = fit_cone(cam, xy[first], a_range_rad, inlier_px=band, rng=rng, max_iter=6, start=(fit.w, fit.a_rad))
+    if fit is not None:
+        fit.reading = "several"
+    return fit
+
+
+SEVERAL_MIN_INSIDE_AGREEMENT = 0.75
+HUE_TOLERANCE_RAD = 0.12
+
+
+def _inside_colour_agreement(sig: _Signal, sil: np.ndarray, R: float) -> float:
+    """Share of the outline whose colour just inside points (as an RGB direction: shading
+    scales it, does not turn it) within HUE_TOLERANCE_RAD of the median inside colour."""
+    gap = max(3.0, 0.04 * R)
+    c_in = sample_profiles(sig.img, sig.origin, sil, outward_normals(sil, sil.mean(axis=0)),
+                           -gap - np.arange(3.0)).mean(axis=1) + 1.0
+    d = c_in / np.linalg.norm(c_in, axis=1, keepdims=True)
+    med = np.median(d, axis=0)
+    med /= max(float(np.linalg.norm(med)), 1e-9)
+    return float(np.mean(np.arccos(np.clip(d @ med, -1.0, 1.0)) < HUE_TOLERANCE_RAD))
 
 
 def _outside_mismatch(sig: _Signal, sil: np.ndarray, nrm: np.ndarray, R: float) -> float:
