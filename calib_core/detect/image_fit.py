@@ -218,10 +218,11 @@ def _first_pass(cam, sig: _Signal, cand: Candidate, R: float, band, a_range_rad,
         # without a background, clutter just outside the outline also makes edges: the
         # strongest colour edge per ray is the other reading; keep the rounder one
         gc = gradient_magnitude(sig.colour_profiles(pts, dirs, t), step)
-        for rule in ("strongest", "several"):
-            if rule == "several" and _pass1_usable(fit1, seg_in, R):
-                break
-            alt = _pass1(cam, pts, dirs, t, gc, seg_in, rule, a_range_rad, R, rng)
+        alt = _pass1(cam, pts, dirs, t, gc, seg_in, "strongest", a_range_rad, R, rng)
+        if alt is not None and (fit1 is None or _quality(alt) > _quality(fit1)):
+            fit1 = alt
+        if not _pass1_usable(fit1, seg_in, R):
+            alt = _pass1_several(cam, sig, pts, dirs, step, R, seg_in, a_range_rad, rng)
             if alt is not None and (fit1 is None or _quality(alt) > _quality(fit1)):
                 fit1 = alt
     if not _pass1_usable(fit1, seg_in, R):
@@ -356,9 +357,7 @@ def _quality(fit: ConeFit) -> float:
 
 
 def _pass1(cam, pts, dirs, t, g, seg_in, rule, a_range_rad, R, rng) -> ConeFit | None:
-    """Pass-1 cone fit to one edge per ray (``rule`` of :func:`pick_edges`, or "several")."""
-    if rule == "several":
-        return _pass1_several(cam, pts, dirs, t, g, seg_in, a_range_rad, R, rng)
+    """Pass-1 cone fit to one edge per ray (``rule`` of :func:`pick_edges`)."""
     t1, _ = pick_edges(t, g, rule, 0.35 * float(np.median(g.max(axis=1)[seg_in])))
     ok = np.isfinite(t1) & seg_in
     ok[ok] = cam.in_image(pts[ok] + t1[ok, None] * dirs[ok], margin_px=2.0)
@@ -374,13 +373,17 @@ def _pass1(cam, pts, dirs, t, g, seg_in, rule, a_range_rad, R, rng) -> ConeFit |
 SEVERAL_PEAKS = 4
 SEVERAL_MIN_SHARE = 0.15
 SEVERAL_HYPOTHESES = 512
+SEVERAL_BAND = (-0.65, 0.8)
 
 
-def _pass1_several(cam, pts, dirs, t, g, seg_in, a_range_rad, R, rng) -> ConeFit | None:
-    """Pass-1 cone fit to the few strongest edges of every ray, then to one edge per ray
+def _pass1_several(cam, sig: _Signal, pts, dirs, step, R, seg_in, a_range_rad, rng) -> ConeFit | None:
+    """Pass-1 cone fit to the few strongest colour edges of every ray, then to one edge per ray
     (the one nearest to that cone): where the sphere's outline is neither the outermost nor
     the strongest edge (a dark ball before a dark backrest whose own edge is stronger and
-    farther out)."""
+    farther out). The band reaches farther in (SEVERAL_BAND): a candidate drawn to the chair
+    around the ball can be twice the ball's size."""
+    t = np.arange(SEVERAL_BAND[0] * R, SEVERAL_BAND[1] * R + step, step)
+    g = gradient_magnitude(sig.colour_profiles(pts, dirs, t), step)
     te = edge_peaks(t, g, SEVERAL_MIN_SHARE * float(np.median(g.max(axis=1)[seg_in])), SEVERAL_PEAKS)
     ray = np.broadcast_to(np.arange(len(te))[:, None], te.shape)
     ok = np.isfinite(te) & seg_in[:, None]
