@@ -468,7 +468,7 @@ def _verdict(look, fits, cands, method, hinted: bool) -> ImageDetection:
     if rival is not None and not hinted:
         d = float(np.hypot(*(rival.centre_uv_px - f.centre_uv_px)))
         u, v = f.centre_uv_px
-        return _not_found(f"{DISPUTED} ({d:.1f} px apart) at ({u:.0f}, {v:.0f})", method,
+        return _not_found(f"{DISPUTED} by {d:.1f} px at ({u:.0f}, {v:.0f})", method,
                           candidates=len(cands), rejected=_rejected(fits))
     if not (0.8 * look.d_min <= f.range_m <= 1.25 * look.d_max):
         return _not_found("apparent size outside the plausible range", method)
