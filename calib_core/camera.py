@@ -1,4 +1,6 @@
-"""Camera model of the paper (eqs. 1-9): pinhole + plumb_bob distortion.
+"""Camera model of the paper (eqs. 1-9): pinhole + plumb_bob distortion, or OpenCV's
+rational model (ROS ``rational_polynomial``: k4..k6 divide the radial polynomial), which
+depth cameras such as the Azure Kinect publish.
 
 Frames: points in the camera frame follow OpenCV (x right, y down, z forward), metres.
 ``xy`` are normalised undistorted coordinates (the paper's x', y'), ``uv_px`` raw
@@ -21,7 +23,8 @@ class CameraModel:
     Attributes:
         width_px, height_px: image size.
         K: 3x3 camera matrix [[fx, 0, cx], [0, fy, cy], [0, 0, 1]] in pixels.
-        dist: (k1, k2, p1, p2, k3), OpenCV order.
+        dist: (k1, k2, p1, p2, k3), OpenCV order; or (k1, k2, p1, p2, k3, k4, k5, k6) for
+            the rational model, kept only when k4..k6 are not all zero.
         name: camera name (free text).
     """
 
@@ -33,10 +36,28 @@ class CameraModel:
 
     def __post_init__(self):
         object.__setattr__(self, "K", np.asarray(self.K, dtype=float).reshape(3, 3))
-        d = np.zeros(5)
         dd = np.asarray(self.dist, dtype=float).ravel()
-        d[: min(5, dd.size)] = dd[:5]
+        d = np.zeros(8 if np.any(dd[5:8] != 0) else 5)
+        d[: min(d.size, dd.size)] = dd[: d.size]
         object.__setattr__(self, "dist", d)
+
+    @property
+    def rational(self) -> bool:
+        """True for OpenCV's rational model (8 coefficients, k4..k6 not all zero)."""
+        return self.dist.size == 8
+
+    def _radial(self, r2: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Radial factor and its derivative with respect to r^2."""
+        k1, k2, p1, p2, k3 = self.dist[:5]
+        num = 1 + k1 * r2 + k2 * r2**2 + k3 * r2**3
+        dnum = k1 + 2 * k2 * r2 + 3 * k3 * r2**2
+        if not self.rational:
+            return num, dnum
+        k4, k5, k6 = self.dist[5:]
+        den = 1 + k4 * r2 + k5 * r2**2 + k6 * r2**3
+        dden = k4 + 2 * k5 * r2 + 3 * k6 * r2**2
+        with np.errstate(divide="ignore", invalid="ignore"):
+            return num / den, (dnum * den - num * dden) / (den * den)
 
     @property
     def fx(self) -> float:
@@ -59,9 +80,9 @@ class CameraModel:
         """P-hat: normalised undistorted (N,2) -> raw pixels (N,2) (eqs. 5-8)."""
         xy = np.asarray(xy, dtype=float).reshape(-1, 2)
         x, y = xy[:, 0], xy[:, 1]
-        k1, k2, p1, p2, k3 = self.dist
+        p1, p2 = self.dist[2:4]
         r2 = x * x + y * y
-        radial = 1 + k1 * r2 + k2 * r2**2 + k3 * r2**3
+        radial, _ = self._radial(r2)
         xd = x * radial + 2 * p1 * x * y + p2 * (r2 + 2 * x * x)
         yd = y * radial + p1 * (r2 + 2 * y * y) + 2 * p2 * x * y
         return np.column_stack([self.fx * xd + self.K[0, 1] * yd + self.cx, self.fy * yd + self.cy])
@@ -150,10 +171,9 @@ class CameraModel:
         """d uv_px / d xy, shape (N,2,2), at normalised undistorted points."""
         xy = np.asarray(xy, dtype=float).reshape(-1, 2)
         x, y = xy[:, 0], xy[:, 1]
-        k1, k2, p1, p2, k3 = self.dist
+        p1, p2 = self.dist[2:4]
         r2 = x * x + y * y
-        radial = 1 + k1 * r2 + k2 * r2**2 + k3 * r2**3
-        dradial_dr2 = k1 + 2 * k2 * r2 + 3 * k3 * r2**2
+        radial, dradial_dr2 = self._radial(r2)
         dxd_dx = radial + x * dradial_dr2 * 2 * x + 2 * p1 * y + p2 * 6 * x
         dxd_dy = x * dradial_dr2 * 2 * y + 2 * p1 * x + p2 * 2 * y
         dyd_dx = y * dradial_dr2 * 2 * x + p1 * 2 * x + 2 * p2 * y

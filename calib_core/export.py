@@ -242,9 +242,13 @@ def to_kalibr(calibration: dict, intrinsics: dict[str, CameraModel], camera: str
             raise KeyError(f"no intrinsics for camera '{cam}'")
         m = intrinsics[cam]
         T = np.asarray(c["T_cam_sonar"], float)
-        k1, k2, p1, p2, k3 = (float(v) for v in m.dist)
+        k1, k2, p1, p2, k3 = (float(v) for v in m.dist[:5])
         if k3 != 0.0:
             notes.append(f"# {plain_line(cam)}: k3 = {_f(k3)} is not part of Kalibr's radtan model and was dropped.")
+        if m.rational:
+            notes.append(f"# {plain_line(cam)}: the rational model's k4..k6 = "
+                         f"{', '.join(_f(float(v)) for v in m.dist[5:])} are not part of Kalibr's radtan model "
+                         "and were dropped: these intrinsics are only an approximation there.")
         entry = {
             "camera_name": cam,
             "camera_model": "pinhole",

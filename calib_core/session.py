@@ -335,6 +335,7 @@ class SessionCheck:
     problems: list[SessionError]
     cameras: dict[str, CameraModel] = field(default_factory=dict)
     cloud_points: dict[str, int] = field(default_factory=dict)
+    cloud_no_return: dict[str, int] = field(default_factory=dict)  # NaN/inf rows dropped, per capture
 
 
 def validate_session(folder: str | Path) -> SessionCheck:
@@ -347,7 +348,8 @@ def validate_session(folder: str | Path) -> SessionCheck:
     models = _check_cameras(session, problems)
     points = _check_captures(session, models, problems)
     _check_results(session, problems)
-    return SessionCheck(session, problems, models, points)
+    return SessionCheck(session, problems, models, {c: n for c, (n, _) in points.items()},
+                        {c: k for c, (_, k) in points.items() if k})
 
 
 def _check_cameras(session: Session, problems: list) -> dict[str, CameraModel]:
@@ -373,15 +375,17 @@ def _check_cameras(session: Session, problems: list) -> dict[str, CameraModel]:
     return models
 
 
-def _check_captures(session: Session, models: dict, problems: list) -> dict[str, int]:
-    """Each capture's cloud and images (problems appended); the clouds' point counts."""
+def _check_captures(session: Session, models: dict, problems: list) -> dict[str, tuple[int, int]]:
+    """Each capture's cloud and images (problems appended); the clouds' point counts (finite
+    points, points without a return)."""
     from calib_core.io.clouds import load_cloud
     from calib_core.io.images import load_image
 
-    points: dict[str, int] = {}
+    points: dict[str, tuple[int, int]] = {}
     for cap in session.captures:
         try:
-            points[cap.id] = len(load_cloud(cap.cloud_path))
+            cloud = load_cloud(cap.cloud_path)
+            points[cap.id] = (len(cloud), cloud.n_without_return)
         except SessionError as e:
             problems.append(e)
         for cam, p in cap.image_paths.items():

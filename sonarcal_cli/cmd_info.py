@@ -30,7 +30,7 @@ def run(args) -> int:
                              f"{m.fx:.1f} / {m.fy:.1f}" if m else "?",
                              spec.background_path.relative_to(s.root) if spec.background_path else "-"])
         console.print(table("Cameras", ["camera", "intrinsics", "size", "fx / fy px", "background"], cam_rows))
-        cap_rows = [[c.id, c.cloud_path.relative_to(s.root), check.cloud_points.get(c.id, "?"),
+        cap_rows = [[c.id, c.cloud_path.relative_to(s.root), _points_cell(check, c.id),
                      ", ".join(sorted(c.image_paths)) or "-"] for c in s.captures]
         console.print(table(f"Captures ({len(s.captures)})", ["capture", "cloud", "points", "images"], cap_rows))
         if s.measured_m:
@@ -42,3 +42,12 @@ def run(args) -> int:
         return 2
     console.print("[green]no problems found[/green]")
     return 0
+
+
+def _points_cell(check, cid: str) -> str:
+    """Point count, and how many rows held no return (NaN/inf, left out)."""
+    n = check.cloud_points.get(cid)
+    if n is None:
+        return "?"
+    k = check.cloud_no_return.get(cid, 0)
+    return f"{n} (+{k} without a return, left out)" if k else str(n)

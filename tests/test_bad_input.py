@@ -44,8 +44,7 @@ def _cut(path, frac):
 
 
 def _nan_cloud(root, _):
-    pts = np.random.default_rng(0).normal(size=(50, 3))
-    pts[5] = [np.nan, 0, 1]
+    pts = np.full((50, 3), np.nan)  # NaN rows are "no return" and dropped; a cloud of nothing else is refused
     pts[9] = [np.inf, 0, 1]
     save_cloud(root / "clouds" / "p02.ply", Cloud(pts))
 
@@ -85,7 +84,7 @@ CASES = {
     "cloud with 0 points": Case(lambda r, _: (r / "clouds" / "p01.ply").write_text(
         "ply\nformat ascii 1.0\nelement vertex 0\nproperty float x\nproperty float y\nproperty float z\nend_header\n"),
         "p01.ply", "no points", "cloud"),
-    "nan/inf points": Case(_nan_cloud, "p02.ply", "NaN or infinite", "cloud"),
+    "nan/inf points only": Case(_nan_cloud, "p02.ply", "holds no return", "cloud"),
     "huge cloud": Case(_huge_cloud, "p03.xyz", "GiB", "cloud"),
     "symlink outside": Case(_symlink_out, "session.yaml", "leaves the session folder", "manifest"),
     "dot-dot path": Case(lambda r, _: _edit(r, lambda d: d["captures"][0].update(cloud="../x.ply")),

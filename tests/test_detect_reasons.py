@@ -34,3 +34,17 @@ def test_the_reason_column_says_why_missing_or_how_a_look_alike_was_ruled_out():
     assert entry_note(settled) == "chosen by static scenery: the other candidate ..."
     assert entry_note({"status": "auto", "center": [1.0, 2.0]}) == ""
     assert entry_note(None) == ""
+
+
+def test_a_cloud_in_millimetres_is_named_as_such():
+    import numpy as np
+
+    from calib_core.detect.reasons import cloud_units_reason
+
+    rng = np.random.default_rng(0)
+    P_m = rng.uniform([-2, -1, 0.5], [2, 1, 6], (5000, 3))  # a lab scan in metres
+    assert cloud_units_reason(P_m, 0.3) is None
+    assert cloud_units_reason(P_m * 20, 0.3) is None  # a far LiDAR scene is still metres
+    r = cloud_units_reason(P_m * 1000, 0.3)
+    assert r is not None and "millimetres" in r and "metres" in r
+    assert cloud_units_reason(np.zeros((0, 3)), 0.3) is None

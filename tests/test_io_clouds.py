@@ -127,18 +127,32 @@ def test_nonfinite_points_rejected_or_dropped(tmp_path, cloud):
     pts[7, 1] = np.inf
     save_cloud(tmp_path / "n.npy", Cloud(pts, cloud.intensity))
     with pytest.raises(SessionError, match="2 of 500 points are NaN or infinite"):
-        load_cloud(tmp_path / "n.npy")
-    c = load_cloud(tmp_path / "n.npy", allow_nonfinite=True)
+        load_cloud(tmp_path / "n.npy", allow_nonfinite=False)
+    c = load_cloud(tmp_path / "n.npy")  # "no return" rows of an organised cloud: dropped, counted
     assert len(c) == 498 and len(c.intensity) == 498 and np.isfinite(c.points_m).all()
+    assert c.n_without_return == 2 and load_cloud(tmp_path / "n.npy", allow_nonfinite=True).n_without_return == 2
 
 
 @pytest.mark.parametrize("suffix", [".ply", ".pcd", ".xyz", ".npy"])
 def test_nan_points_in_each_format(tmp_path, suffix):
     pts = np.array([[0, 0, 1.0], [np.nan, 0, 1.0], [1, 1, 1]])
     save_cloud(tmp_path / f"n{suffix}", Cloud(pts))
-    with pytest.raises(SessionError, match="NaN or infinite") as ei:
-        load_cloud(tmp_path / f"n{suffix}")
-    assert ei.value.path == tmp_path / f"n{suffix}"
+    c = load_cloud(tmp_path / f"n{suffix}")
+    assert len(c) == 2 and c.n_without_return == 1
+    save_cloud(tmp_path / f"a{suffix}", Cloud(np.full((4, 3), np.nan)))
+    with pytest.raises(SessionError, match="no return") as ei:
+        load_cloud(tmp_path / f"a{suffix}")
+    assert ei.value.path == tmp_path / f"a{suffix}"
+
+
+def test_organised_pcd_with_nan_as_pcl_writes_it(tmp_path):
+    """An organised 4 x 3 PCD (``is_dense`` false in PCL terms) whose NaN rows mean no return."""
+    rows = ["1 2 3", "nan nan nan", "0.5 0.5 2", "nan nan nan"] * 3
+    head = ("# .PCD v0.7 - Point Cloud Data file format\nVERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\n"
+            "COUNT 1 1 1\nWIDTH 4\nHEIGHT 3\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS 12\nDATA ascii\n")
+    (tmp_path / "o.pcd").write_text(head + "\n".join(rows) + "\n")
+    c = load_cloud(tmp_path / "o.pcd")
+    assert len(c) == 6 and c.n_without_return == 6 and np.isfinite(c.points_m).all()
 
 
 def test_unknown_suffix_and_writer_errors(tmp_path, cloud):
@@ -152,3 +166,14 @@ def test_unknown_suffix_and_writer_errors(tmp_path, cloud):
 def test_uppercase_suffix(tmp_path, cloud):
     save_cloud(tmp_path / "C.PLY", cloud)
     assert len(load_cloud(tmp_path / "C.PLY")) == 500
+
+
+def test_points_at_the_sensor_origin_are_no_return(tmp_path, cloud):
+    pts = cloud.points_m.copy()
+    pts[:40] = 0.0  # a LiDAR driver's "no return"
+    save_cloud(tmp_path / "z.npy", Cloud(pts, cloud.intensity))
+    c = load_cloud(tmp_path / "z.npy")
+    assert len(c) == 460 and c.n_without_return == 40 and c.points_m.any(axis=1).all() and len(c.intensity) == 460
+    save_cloud(tmp_path / "zz.npy", Cloud(np.zeros((30, 3))))
+    with pytest.raises(SessionError, match="no return"):
+        load_cloud(tmp_path / "zz.npy")

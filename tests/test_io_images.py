@@ -131,3 +131,25 @@ def test_video_missing_and_corrupt(tmp_path):
     (tmp_path / "r.mp4").write_bytes(np.random.default_rng(2).bytes(3000))
     with pytest.raises(SessionError):
         load_background_frames(tmp_path / "r.mp4")
+
+
+@pytest.mark.parametrize("bits", [10, 12, 16])
+def test_16bit_files_holding_fewer_bits_use_their_full_scale(tmp_path, bits):
+    """A 12-bit camera frame in a 16-bit PNG keeps its contrast (not 0-16 DN)."""
+    full = (1 << bits) - 1
+    grey = np.tile(np.linspace(0, full, 40).astype(np.uint16), (30, 1))
+    cv2.imwrite(str(tmp_path / "m.png"), grey)
+    back = load_image(tmp_path / "m.png")[:, :, 0].astype(int)
+    expected = np.round(grey.astype(float) * 255.0 / full).astype(int)
+    assert np.abs(back - expected).max() <= 1
+    assert back.max() == 255
+
+
+def test_a_resized_frame_gets_a_hint_to_scale_the_intrinsics(tmp_path, rgb):
+    save_image(tmp_path / "half.png", rgb)  # 40 x 30
+    with pytest.raises(SessionError, match=r"scaled by 0\.5: scale fx, fy, cx, cy") as ei:
+        load_image(tmp_path / "half.png", expected_wh=(80, 60))
+    assert "\n" not in ei.value.problem
+    with pytest.raises(SessionError) as ei:
+        load_image(tmp_path / "half.png", expected_wh=(80, 45))
+    assert "scaled by" not in ei.value.problem

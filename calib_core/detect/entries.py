@@ -19,6 +19,7 @@ import numpy as np
 
 from calib_core.camera import CameraModel
 from calib_core.detections import is_operator_entry
+from calib_core.detect.reasons import cloud_units_reason
 from calib_core.errors import SessionError
 from calib_core.session import Session
 
@@ -115,6 +116,9 @@ def detect_sonar_entry(data: SessionData | Session, capture_id: str, seed_center
     beam = data.effective_beam_width_deg
     det = detect_sphere_in_cloud(points_sonar_m, s.sphere_radius_m, beam_width_deg=beam, seed_center_m=seed_center_m)
     entry = det.to_entry()
+    units = None if det.found else cloud_units_reason(points_sonar_m, 2 * s.sphere_radius_m)
+    if units:
+        entry["reason"] = f"{units} ({entry.get('reason') or 'not found'})"
     entry["beam_width_deg"] = round(float(beam), 4)
     entry["beam_width_nominal_deg"] = float(s.beam_width_deg or 1.0)
     return entry

@@ -14,6 +14,9 @@ from collections import Counter
 
 # a detection whose reprojection misses it by more than this is shown as a problem (px)
 RESIDUAL_PROBLEM_PX = 5.0
+# a cloud whose points lie a median this far from the sensor (m) is not a calibration scan in
+# metres: a lab or harbour scene in millimetres lies 500-20000 "m" away
+MM_CLOUD_MEDIAN_M = 250.0
 
 
 def reason_kind(reason: str) -> str:
@@ -65,3 +68,19 @@ def count_reasons(reasons) -> str:
     """"no round outline: 2, sphere cut by the image border: 1" (most common first)."""
     c = Counter(reason_kind(r) for r in reasons if r)
     return ", ".join(f"{k}: {n}" for k, n in c.most_common())
+
+
+def cloud_units_reason(points_sensor_m, sphere_diameter_m: float) -> str | None:
+    """Why a cloud probably is not in metres, or None: its points lie a median of more than
+    MM_CLOUD_MEDIAN_M from the sensor while the sphere is a few metres at most (a cloud
+    written in millimetres, as some depth-camera and CAD tools do)."""
+    import numpy as np
+
+    P = np.asarray(points_sensor_m, float).reshape(-1, 3)
+    if len(P) == 0 or not sphere_diameter_m < 5.0:
+        return None
+    d = float(np.median(np.linalg.norm(P[:: max(1, len(P) // 20000)], axis=1)))
+    if not d > MM_CLOUD_MEDIAN_M:
+        return None
+    return (f"the cloud's points lie a median {d:.0f} m from the sensor: is it in millimetres? "
+            f"Clouds must be in metres (divide by 1000)")

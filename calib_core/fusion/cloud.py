@@ -65,6 +65,18 @@ def _r2_limit_uncached(cam: CameraModel) -> float:
     return float(r2.max() * 1.05) if r2.size else np.inf
 
 
+def _rational_denominator(r2: np.ndarray, k456) -> np.ndarray:
+    """1 + k4 r^2 + k5 r^4 + k6 r^6 (float32) of OpenCV's rational model."""
+    k4, k5, k6 = (np.float32(c) for c in k456)
+    den = r2 * k6
+    den += k5
+    den *= r2
+    den += k4
+    den *= r2
+    den += np.float32(1.0)
+    return den
+
+
 def project_cloud(points_sonar_m: np.ndarray, T_cam_sonar: np.ndarray, cam: CameraModel,
                   margin_px: float = 0.0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Project sonar-frame points into a camera's raw image (the paper's eq. 11).
@@ -104,7 +116,7 @@ def _project(points_sonar_m, T_cam_sonar, cam: CameraModel, margin_px: float = 0
         y = Pc[:, 1].astype(np.float32)
         y *= inv
         f32 = np.float32
-        k1, k2, p1, p2, k3 = (f32(c) for c in cam.dist)
+        k1, k2, p1, p2, k3 = (f32(c) for c in cam.dist[:5])
         ok = front
         if np.any(cam.dist):
             r2 = x * x
@@ -116,6 +128,8 @@ def _project(points_sonar_m, T_cam_sonar, cam: CameraModel, margin_px: float = 0
             radial += k1
             radial *= r2
             radial += f32(1.0)
+            if cam.rational:
+                radial /= _rational_denominator(r2, cam.dist[5:])
             xy2 = x * y
             xy2 *= f32(2.0)
             xd = x * radial

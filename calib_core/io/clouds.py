@@ -30,17 +30,25 @@ class Cloud:
     Attributes:
         points_m: (N,3) float64, metres, all finite.
         intensity: (N,) float64 or None.
+        n_without_return: rows of the file that held NaN or infinite coordinates or exactly
+            (0, 0, 0) (the ways PCL's organised clouds, depth cameras and many LiDAR drivers mark
+            "no return"); dropped.
     """
 
     points_m: np.ndarray
     intensity: np.ndarray | None = None
+    n_without_return: int = 0
 
     def __len__(self) -> int:
         return len(self.points_m)
 
 
-def load_cloud(path: str | Path, allow_nonfinite: bool = False) -> Cloud:
-    """Load a point cloud; reject empty clouds and NaN/inf points (unless allowed: then dropped)."""
+def load_cloud(path: str | Path, allow_nonfinite: bool = True) -> Cloud:
+    """Load a point cloud; reject empty clouds. Points with NaN or infinite coordinates mean
+    "no return" in organised clouds (PCL, depth cameras, LiDAR drivers): they are dropped and
+    counted (``Cloud.n_without_return``), as are points at exactly (0, 0, 0), the sensor's own
+    origin; a cloud with nothing else is refused.
+    ``allow_nonfinite=False`` refuses any such point instead."""
     path = Path(path)
     if not path.is_file():
         raise SessionError(path, "point cloud file not found")
@@ -69,18 +77,19 @@ def load_cloud(path: str | Path, allow_nonfinite: bool = False) -> Cloud:
     if len(pts) == 0:
         raise SessionError(path, "point cloud holds no points")
     finite = np.isfinite(pts).all(axis=1)
+    if not allow_nonfinite and not finite.all():
+        raise SessionError(path, f"{int((~finite).sum())} of {len(pts)} points are NaN or infinite")
+    keep = finite & pts.any(axis=1)  # exactly (0, 0, 0), the sensor's own origin, is how many drivers write "no return"
     if inten is not None:
         inten = np.asarray(inten, dtype=np.float64).reshape(-1)
         if len(inten) != len(pts):
             inten = None
-    if not finite.all():
-        if not allow_nonfinite:
-            raise SessionError(path, f"{int((~finite).sum())} of {len(pts)} points are NaN or infinite")
-        pts = pts[finite]
-        inten = None if inten is None else inten[finite]
-        if len(pts) == 0:
-            raise SessionError(path, "point cloud holds no finite points")
-    return Cloud(pts, inten)
+    if not keep.all():
+        if not keep.any():
+            raise SessionError(path, f"point cloud holds no return: all {len(pts)} points are NaN, infinite or (0, 0, 0)")
+        pts = pts[keep]
+        inten = None if inten is None else inten[keep]
+    return Cloud(pts, inten, int(len(keep) - len(pts)))
 
 
 def save_cloud(path: str | Path, cloud: Cloud) -> None:

@@ -94,7 +94,20 @@ def _tiff_size(path: Path) -> tuple[int, int] | None:
 
 def _check_expected(path: Path, wh: tuple[int, int], expected_wh) -> None:
     if expected_wh is not None and tuple(int(v) for v in expected_wh) != wh:
-        raise SessionError(path, f"image is {wh[0]} x {wh[1]} but its intrinsics say {expected_wh[0]} x {expected_wh[1]}")
+        raise SessionError(path, f"image is {wh[0]} x {wh[1]} but its intrinsics say {expected_wh[0]} x {expected_wh[1]}"
+                                 + _resize_hint(wh, expected_wh))
+
+
+def _resize_hint(wh, expected_wh) -> str:
+    """When the image is the intrinsics' frame resized by one factor (a half-size export,
+    a binned camera), say so: the intrinsics can be scaled instead of recalibrated."""
+    if min(int(expected_wh[0]), int(expected_wh[1]), *wh) <= 0:
+        return ""
+    sx, sy = wh[0] / float(expected_wh[0]), wh[1] / float(expected_wh[1])
+    if abs(sx - sy) < 2.0 / max(wh) and sx != 1.0:
+        return (f" (the same frame scaled by {sx:.4g}: scale fx, fy, cx, cy and the image size "
+                f"in the intrinsics by {sx:.4g}, or use images of the calibrated size)")
+    return ""
 
 
 def load_image(path: str | Path, expected_wh: tuple[int, int] | None = None) -> np.ndarray:
@@ -128,10 +141,19 @@ def load_image(path: str | Path, expected_wh: tuple[int, int] | None = None) -> 
     return _to_rgb8(path, img)
 
 
+def _container_max(img16: np.ndarray) -> int:
+    """Full scale of a 16-bit image: machine-vision cameras store 10- or 12-bit pixels in
+    16-bit files (PNG/TIFF), so a 12-bit frame whose brightest pixel is 4000 is scaled by
+    255/4095, not 255/65535 (which would leave it at 0-16 DN). The bit depth is the smallest
+    one, at least 8, that holds the brightest pixel."""
+    bits = max(8, int(img16.max()).bit_length()) if img16.size else 16
+    return (1 << bits) - 1
+
+
 def _to_rgb8(path: Path, img: np.ndarray) -> np.ndarray:
     """Any decoded OpenCV image (BGR/BGRA/grey, 8/16-bit or float) -> RGB uint8."""
     if img.dtype == np.uint16:
-        img = cv2.convertScaleAbs(img, alpha=1 / 257.0)  # rounds and saturates, no float copy
+        img = cv2.convertScaleAbs(img, alpha=255.0 / _container_max(img))  # rounds and saturates, no float copy
     elif img.dtype in (np.float32, np.float64):
         np.nan_to_num(img, copy=False, posinf=0.0, neginf=0.0)
         np.clip(img, 0, None, out=img)

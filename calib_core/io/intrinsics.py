@@ -97,12 +97,12 @@ def _from_ros(path: Path, data: dict) -> CameraModel:
     K = _matrix(path, data, "camera_matrix", 9).reshape(3, 3)
     model = data.get("distortion_model", "plumb_bob")
     if model not in ("plumb_bob", "rational_polynomial", "", None):
-        raise SessionError(path, f"distortion_model {short_repr(model)} is not supported (use plumb_bob)")
+        raise SessionError(path, f"distortion_model {short_repr(model)} is not supported "
+                                 "(use plumb_bob or rational_polynomial)")
     dist = _matrix(path, data, "distortion_coefficients", (4, 5, 8)) if "distortion_coefficients" in data else np.zeros(5)
-    if dist.size == 8:
-        if np.any(dist[5:] != 0):
-            raise SessionError(path, "rational_polynomial with k4..k6 != 0 is not supported (use plumb_bob)")
-        dist = dist[:5]
+    if dist.size == 8 and model == "plumb_bob" and np.any(dist[5:] != 0):
+        raise SessionError(path, "plumb_bob distortion has 5 coefficients, but k4..k6 (values 6-8) are not zero: "
+                                 "write distortion_model: rational_polynomial")
     _check_K(path, K, w, h)
     return CameraModel(w, h, K, dist, name=_camera_name(path, data.get("camera_name")))
 
@@ -188,7 +188,7 @@ def _read_opencv_storage(path: Path) -> CameraModel:
     if not np.isfinite(K).all() or not np.isfinite(dist).all():
         raise SessionError(path, "camera matrix or distortion holds NaN or infinite values")
     _check_K(path, K, w, h)
-    return CameraModel(w, h, K, dist[:5], name=path.stem)
+    return CameraModel(w, h, K, dist, name=path.stem)
 
 
 def camera_info_dict(cam: CameraModel, name: str | None = None) -> dict:
@@ -199,8 +199,8 @@ def camera_info_dict(cam: CameraModel, name: str | None = None) -> dict:
         "image_height": int(cam.height_px),
         "camera_name": name or cam.name or "camera",
         "camera_matrix": {"rows": 3, "cols": 3, "data": [float(v) for v in cam.K.ravel()]},
-        "distortion_model": "plumb_bob",
-        "distortion_coefficients": {"rows": 1, "cols": 5, "data": [float(v) for v in cam.dist]},
+        "distortion_model": "rational_polynomial" if cam.rational else "plumb_bob",
+        "distortion_coefficients": {"rows": 1, "cols": int(cam.dist.size), "data": [float(v) for v in cam.dist]},
         "rectification_matrix": {"rows": 3, "cols": 3, "data": [float(v) for v in np.eye(3).ravel()]},
         "projection_matrix": {"rows": 3, "cols": 4, "data": [float(v) for v in P.ravel()]},
     }

@@ -67,7 +67,7 @@ def _summary(session, calibration, models, cal_note) -> str:
     cams = [[c, f"{m.width_px} x {m.height_px}", f"{m.fx:.1f} / {m.fy:.1f}", f"{m.cx:.1f} / {m.cy:.1f}",
              " ".join(f"{d:.4g}" for d in m.dist)] if m else [c, "unavailable", "-", "-", "-"]
             for c, m in models.items()]
-    html = _table(["", ""], rows) + _table(["camera", "size px", "fx / fy px", "cx / cy px", "k1 k2 p1 p2 k3"], cams)
+    html = _table(["", ""], rows) + _table(["camera", "size px", "fx / fy px", "cx / cy px", "k1 k2 p1 p2 k3 (k4 k5 k6: rational model)"], cams)
     if calibration:
         created = calibration.get("created") or "-"
         tool = calibration.get("tool") or {}
