@@ -222,7 +222,7 @@ def _first_pass(cam, sig: _Signal, cand: Candidate, R: float, band, a_range_rad,
         if alt is not None and (fit1 is None or _quality(alt) > _quality(fit1)):
             fit1 = alt
         if not _pass1_usable(fit1, seg_in, R):
-            alt = _pass1_several(cam, sig, pts, dirs, step, R, seg_in, a_range_rad, rng)
+            alt = _pass1_several(cam, sig, pts, dirs, step, R, seg_in, a_range_rad)
             if alt is not None and (fit1 is None or _quality(alt) > _quality(fit1)):
                 fit1 = alt
     if not _pass1_usable(fit1, seg_in, R):
@@ -376,7 +376,7 @@ SEVERAL_HYPOTHESES = 512
 SEVERAL_BAND = (-0.65, 0.8)
 
 
-def _pass1_several(cam, sig: _Signal, pts, dirs, step, R, seg_in, a_range_rad, rng) -> ConeFit | None:
+def _pass1_several(cam, sig: _Signal, pts, dirs, step, R, seg_in, a_range_rad) -> ConeFit | None:
     """Pass-1 cone fit to the few strongest colour edges of every ray, then to one edge per ray
     (the one nearest to that cone): where the sphere's outline is neither the outermost nor
     the strongest edge (a dark ball before a dark backrest whose own edge is stronger and
@@ -394,13 +394,16 @@ def _pass1_several(cam, sig: _Signal, pts, dirs, step, R, seg_in, a_range_rad, r
         return None
     xy = normalize_near(cam, uv)
     band = max(1.5, 0.04 * R)
-    fit = fit_cone(cam, xy, a_range_rad, inlier_px=band, rng=rng, max_iter=6, n_hyp=SEVERAL_HYPOTHESES)
+    # its own random stream: trying this reading must not change the draws of the fits after it
+    # (the detection of a candidate this reading does not help stays what it was)
+    fit = fit_cone(cam, xy, a_range_rad, inlier_px=band, rng=np.random.default_rng(len(xy)), max_iter=6,
+                   n_hyp=SEVERAL_HYPOTHESES)
     if fit is None:
         return None
     # one edge per ray: the nearest to the cone
     order = np.lexsort((np.abs(fit.residuals_px), ray))
     first = order[np.r_[True, ray[order][1:] != ray[order][:-1]]]
-    fit = fit_cone(cam, xy[first], a_range_rad, inlier_px=band, rng=rng, max_iter=6, start=(fit.w, fit.a_rad))
+    fit = fit_cone(cam, xy[first], a_range_rad, inlier_px=band, max_iter=6, start=(fit.w, fit.a_rad))
     if fit is not None:
         fit.reading = "several"
     return fit
