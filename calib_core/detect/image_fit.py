@@ -175,6 +175,8 @@ def refine_candidate(image: np.ndarray, cam: CameraModel, cand: Candidate, spher
         return CandidateFit(False, fit1)
     # ---- pass 2: along the normals of the fitted silhouette, narrow band (twice when the
     # first pass-2 fit is still rough: clutter drew pass 1 off the outline)
+    if fit1.reading == "several":
+        rng = np.random.default_rng(len(fit1.inliers))  # (see _pass1_several: its own stream)
     p2 = _pass2(cam, sig, fit1, R, a_range_rad, rng)
     if p2 is not None and p2[0].sigma_px > clean_rms_px(R):
         again = _pass2(cam, sig, p2[0], R, a_range_rad, rng)
