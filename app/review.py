@@ -14,7 +14,7 @@ import numpy as np
 
 from app.common import client_tag, guarded, notify
 from calib_core.diagnose import wording
-from calib_core.detect.reasons import entry_note
+from calib_core.detect.reasons import entry_note, entry_score, score_text
 from calib_core.errors import SessionError
 from calib_core.markup import escape_md
 from calib_core.pipeline import refit_sonar
@@ -46,8 +46,8 @@ def cell(c: dict | None) -> str:
     parts = [c["status"]]
     if not c["found"] and c["status"] not in ("rejected", "missing"):
         parts.append(f"(not found: {escape_md(c.get('reason') or 'no sphere')})")
-    elif c["score"] is not None:
-        parts.append(f"{c['score']:.2f}")
+    elif c.get("score_text") or c.get("score") is not None:
+        parts.append(c.get("score_text") or f"{c['score']:.2f}")
     if c["residual_px"] is not None:
         parts.append(f"· {c['residual_px']:.2f} px")
     if flagged:
@@ -113,15 +113,16 @@ class ReviewPanel:
                 if res is not None:
                     row["residual"] = max(row["residual"] or 0.0, res)
                 flag = st.flag_for(cap.id, sensor)
-                row["sensors"][sensor] = {"status": status, "score": e.get("score"), "residual_px": res,
+                row["sensors"][sensor] = {"status": status, "score": entry_score(e), "score_text": score_text(e),
+                                          "residual_px": res,
                                           "found": e.get("center") is not None, "reason": entry_note(e) or None,
                                           "flag": flag}
                 if status == "rejected":
                     row["rejected"] = True
                 elif e.get("center") is None:
                     row["missing"] = True
-                if e.get("score") is not None:
-                    row["score"] = min(row["score"], float(e["score"]))
+                if entry_score(e) is not None:
+                    row["score"] = min(row["score"], entry_score(e))
                 row["flagged"] = row.get("flagged", False) or (flag is not None and status != "rejected")
             rows.append(row)
         rows.sort(key=lambda r: (r["rejected"], not r.get("flagged"), not r["missing"],

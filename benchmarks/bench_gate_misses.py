@@ -21,6 +21,13 @@ trial, how visible the move is:
 - ``F power``: the same for the gate's own kind of test, the noise level estimated from the
   other captures (noncentral F(2, 2n - 8)): the best a test that trusts no stated sigma can do.
 
+- ``range mm`` / ``size ev``: the other cue a camera has, the sphere's apparent size (its range
+  in the camera from the known diameter, ``calib_core.solve.scale``): the change of the sphere's
+  camera range the move causes (a move across the ray changes it only to second order,
+  sqrt(r^2 + d^2) - r) over the sigma of that comparison, sqrt(sigma_size^2 + sigma_sonar^2), with
+  sigma_size = r^2 sigma_outline / (f R) for a 0.22 m sphere and an outline (radius) sigma of
+  ``--outline-px`` (the tool's default, 2 px, and an optimistic 0.5 px).
+
 Printed: per noise law, the catch rate (the issue's row), both expected rates, the catch rate
 among observable moves (evidence >= k sigma, k where the oracle's power reaches 99 %: a
 separate row, never the issue's), the catch rate among moves the F test catches with >= 99 %
@@ -66,10 +73,10 @@ def f_power(lam: float, n: int) -> float:
     noncentrality ``lam``: the best any test can do when the sigmas are not trusted."""
     from scipy.stats import ncf
 
-    from calib_core.solve.gate import f_critical
+    from calib_core.solve.gate import drop_critical
 
     dof = 2 * n - 8
-    return float(ncf.sf(f_critical(np.array([dof]), n)[0], 2, dof, lam))
+    return float(ncf.sf(drop_critical(np.array([dof]), n)[0], 2, dof, lam))
 
 
 def evidence(rig, X_clean, X_moved, i: int) -> tuple[float, float, float, float]:
@@ -96,6 +103,19 @@ def evidence(rig, X_clean, X_moved, i: int) -> tuple[float, float, float, float]
     return px, math.sqrt(lam), float(ncx2.sf(oracle_crit(n), 2, lam)), f_power(lam, n)
 
 
+DIAMETER_M = 0.22
+
+
+def size_evidence(rig, X_clean, X_moved, i: int, outline_px: float) -> tuple[float, float]:
+    """(change of the camera range, mm; that change in sigma of the apparent-size comparison)."""
+    T = rig.T_cam_sonar["cam1"]
+    f = float(rig.cameras["cam1"].K[0, 0])
+    r0 = float(np.linalg.norm(transform_points(T, X_clean[i:i + 1])[0]))
+    r1 = float(np.linalg.norm(transform_points(T, X_moved[i:i + 1])[0]))
+    sigma = math.hypot(r0 * r0 * outline_px / (f * DIAMETER_M / 2), SIGMA_M)
+    return 1000 * (r1 - r0), abs(r1 - r0) / sigma
+
+
 def trials_of(tails: str, trials: int, n: int, factor: float):
     """Per trial: (seed, row, px, evidence, oracle power, caught, F-test power)."""
     out = []
@@ -104,8 +124,11 @@ def trials_of(tails: str, trials: int, n: int, factor: float):
         bad = k % n
         Xm = moved(rig, X, bad, rng)
         sol = solve_camera(data(rig, uv, Xm, factor * SIGMA_PX, factor * SIGMA_M), loo=False)
-        px, ev, pw, fp = evidence(rig, rig.X_true_sonar_m, rig.X_true_sonar_m + (Xm - X), bad)
-        out.append((20_000 + k, bad, px, ev, pw, not sol.used[bad], fp))
+        X1 = rig.X_true_sonar_m + (Xm - X)
+        px, ev, pw, fp = evidence(rig, rig.X_true_sonar_m, X1, bad)
+        dr, ev2 = size_evidence(rig, rig.X_true_sonar_m, X1, bad, 2.0)
+        _, ev05 = size_evidence(rig, rig.X_true_sonar_m, X1, bad, 0.5)
+        out.append((20_000 + k, bad, px, ev, pw, not sol.used[bad], fp, dr, ev2, ev05))
     return out
 
 
@@ -124,13 +147,19 @@ def report(tails: str, rows, n: int, k_obs: float, factor: float) -> None:
     sure = fpow >= 0.99
     print(f"  moves the F test itself catches with >= 99 % power   {int(sure.sum()):4d} of {len(rows)}, "
           f"caught {100 * caught[sure].mean():.1f}%")
+    dr = np.abs([r[7] for r in rows])
+    e2, e05 = np.array([r[8] for r in rows]), np.array([r[9] for r in rows])
+    print(f"  apparent size: camera range change median {np.median(dr):.1f} mm, max {dr.max():.1f} mm; evidence "
+          f"median {np.median(e2):.2f} / max {e2.max():.2f} sigma (outline 2 px), "
+          f"median {np.median(e05):.2f} / max {e05.max():.2f} sigma (0.5 px)")
     misses = [r for r in rows if not r[5]]
     if misses:
         print(f"  misses: {'seed':>6} {'row':>3} {'move px':>8} {'img px/sig':>10} {'evidence sig':>12} "
-              f"{'oracle power':>12} {'F power':>8} {'observable':>10}")
-        for s, i, px, e, pw, _, fp in misses:
+              f"{'oracle power':>12} {'F power':>8} {'observable':>10} {'range mm':>8} {'size ev 2px/0.5px':>17}")
+        for s, i, px, e, pw, _, fp, d_r, s2, s05 in misses:
             print(f"          {s:>6} {i:>3} {px:>8.1f} {px / (factor * SIGMA_PX):>10.1f} {e:>12.2f} "
-                  f"{100 * pw:>11.1f}% {100 * fp:>7.1f}% {'yes' if e >= k_obs else 'no':>10}")
+                  f"{100 * pw:>11.1f}% {100 * fp:>7.1f}% {'yes' if e >= k_obs else 'no':>10} {d_r:>8.1f} "
+                  f"{s2:>8.2f}/{s05:.2f}")
 
 
 def main(argv=None):

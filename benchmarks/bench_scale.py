@@ -1,6 +1,6 @@
 """Range scale by default: two cameras with a stereo transform, one camera through the diameter.
 
-    .venv/bin/python benchmarks/bench_scale.py [--trials 100]
+    .venv/bin/python benchmarks/bench_scale.py [--trials 100] [--tables E]
 
 Every trial draws a fresh rig and sphere layout (calib_core.solve.simulate; 0.3 px image and
 3 mm sonar noise, stated correctly) and solves as ``calibrate_session`` does, with no flag
@@ -20,6 +20,15 @@ C. One camera, true scale 1.02 and 1.00: image ranges from the sphere's apparent
    with --scale (the sigma includes the diameter tolerance); RMS of (s - s_true)/sigma (--scale).
 D. Two cameras, no stereo transform (calib_core.solve.shared_scale): both cameras' ranges as in C
    (the same b on both, one diameter error common to both); one shared scale.
+E. One camera as in C (b = 0), true scale 1.02, where some entries come from the sonar-guided
+   look at the predicted place and size (calib_core.detect.image_predicted), whose prediction
+   carries the sonar's scale (range |T X_sonar| with the measured, scaled sonar centre). As
+   bench_predicted_look.py's range table measures, a look's range follows the prediction's
+   (slope LOOK_PULL ~ 1, with or without the 3 % size prior: the fixed-radius circle search picks
+   the edge points) while its stated sigma stays that of a clean outline; modelled so: range =
+   truth + LOOK_PULL (prediction - truth) + the noise of C, sigma as in C. Rows: no looks; looks'
+   ranges used as recorded before score round 2; looks' ranges left out (now:
+   pipeline.correspondences gives them no range, the solver uses the rows that have one).
 """
 
 from __future__ import annotations
@@ -166,6 +175,66 @@ def no_stereo(trials, n, scale, outline_px):
     return np.array(rows, float)
 
 
+LOOK_PULL = 1.0  # slope of a look's range error on its prediction's (bench_predicted_look.py --range-bias)
+
+
+def looked_ranges(rig, rng, n_looks: int, mode: str, outline_px=0.0):
+    """Ranges of one camera where the first ``n_looks`` rows come from looks: ``mode`` 'none' (no
+    looks), 'pulled' (towards the prediction, as recorded before) or 'left out' (NaN)."""
+    r, sig = ranges(rig, rng, outline_px=outline_px)
+    if mode == "none" or n_looks == 0:
+        return r, sig
+    idx = np.arange(n_looks)
+    r, sig = r.copy(), sig.copy()
+    if mode == "left out":
+        r[idx], sig[idx] = np.nan, np.nan
+        return r, sig
+    T = rig.T_cam_sonar["cam1"]
+    true = np.linalg.norm(transform_points(T, rig.X_true_sonar_m[idx]), axis=1)
+    pred = np.linalg.norm(transform_points(T, rig.X_sonar_m[idx]), axis=1)
+    r[idx] += LOOK_PULL * (pred - true)
+    return r, sig
+
+
+def one_camera_looks(trials, n, n_looks, mode, scale=1.02):
+    """Per trial: no flag (s, sigma, applied?) and --scale (s, sigma)."""
+    rows = []
+    for k in range(trials):
+        rig = synthetic_rig(40_000 + k, n_captures=n, scale=scale, depth_m=(0.8, 3.0))
+        cd = cdata(rig, "cam1", looked_ranges(rig, np.random.default_rng(k), n_looks, mode))
+        auto, forced = (solve_camera(cd, loo=False, estimate_scale=m, range_model=MODEL) for m in (None, True))
+        rows.append((auto.scale, auto.scale_sigma or math.nan, auto.scale_sigma is not None,
+                     forced.scale, forced.scale_sigma or math.nan))
+    return np.array(rows, float)
+
+
+def table_e(trials):
+    print(f"\nE. One camera, true scale 1.02, b = 0, some entries from looks at the predicted place and size "
+          f"(their range pulled to the prediction's with slope {LOOK_PULL:g}), {trials} trials per row")
+    print(f"{'N':>3} {'looks':>5} {'looks ranges':>12} | {'applied':>7} {'in 3 sig':>8} | {'--scale: mean s':>15} "
+          f"{'s err %':>7} {'med sig %':>9} {'in 3 sig':>8} {'RMS z':>5} {'pulled to 1 (> 3 sig)':>21}")
+    checks = []
+    s = 1.02
+    for n, m in ((15, 5), (9, 3)):
+        for mode in ("none", "pulled", "left out"):
+            r = one_camera_looks(trials, n, m if mode != "none" else 0, mode, s)
+            est = r[:, 2] > 0
+            cover = float(np.mean(np.abs(r[est, 0] - s) / r[est, 1] <= 3)) if est.any() else math.nan
+            zf = (r[:, 3] - s) / r[:, 4]
+            ok = np.isfinite(zf)
+            cover_f = float(np.mean(np.abs(zf[ok]) <= 3)) if ok.any() else math.nan
+            to1 = float(np.mean(np.abs(r[ok, 3] - s) / r[ok, 4] > 3)) if ok.any() else math.nan
+            print(f"{n:>3} {m if mode != 'none' else 0:>5} {mode:>12} | {100 * est.mean():>6.0f}% {100 * cover:>7.0f}% | "
+                  f"{np.mean(r[ok, 3]):>15.4f} {100 * rms(r[ok, 3] - s):>7.3f} {100 * np.nanmedian(r[:, 4]):>9.3f} "
+                  f"{100 * cover_f:>7.0f}% {rms(zf[ok]):>5.2f} {100 * to1:>20.0f}%")
+            if mode == "left out":
+                checks.append((f"one camera, N={n}, {m} entries from looks, true s 1.02: scale within its stated "
+                               f"3 sigma (--scale; applied by default in {100 * est.mean():.0f} %: "
+                               f"{100 * cover:.0f} % of those)", f"{100 * cover_f:.0f} %, mean s {np.mean(r[ok, 3]):.4f}",
+                               cover_f >= 0.99 and (not est.any() or cover >= 0.99)))
+    return checks
+
+
 def rms(v):
     return float(math.sqrt(np.mean(np.square(v))))
 
@@ -229,7 +298,7 @@ def table_d(trials):
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--trials", type=int, default=100)
-    ap.add_argument("--tables", default="ABCD", help="which tables to run (default ABCD)")
+    ap.add_argument("--tables", default="ABCDE", help="which tables to run (default ABCDE)")
     a = ap.parse_args(argv)
     print(f"load average before: {os.getloadavg()}")
     checks = []
@@ -239,6 +308,8 @@ def main(argv=None):
         checks += table_c(a.trials)
     if "D" in a.tables:
         checks += table_d(a.trials)
+    if "E" in a.tables:
+        checks += table_e(a.trials)
     print(f"load average after: {os.getloadavg()}")
     print("\nTargets")
     for name, val, ok in checks:

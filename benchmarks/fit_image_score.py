@@ -1,5 +1,8 @@
 """Fit the image detection's probability model (calib_core/detect/image_score.py) and measure it.
 
+Score round 2: the model in the code is CALIBRATION (the logit and a capped size term, see
+image_score's docstring); PLATT (the logit alone) is still fitted and shown for comparison.
+
 One command for the lead: it collects labelled detections (``benchmarks/score_samples.py``:
 training = synthetic cases seeds 0-39 and sessions seeds 1-3, hard negatives included; test =
 cases seeds 1000-1039, sessions seeds 41-60, kinectnet; decoys/review sessions seeds 1-3 are
@@ -8,7 +11,12 @@ shown, not fitted), fits the recalibration (``image_score.PLATT``) on the calibr
 ``image_score.py`` and the reliability tables of every source before and after. Records are cached per
 source in ``--cache`` (``--fresh`` re-detects everything, e.g. after a detector change).
 
-Run: .venv/bin/python benchmarks/fit_image_score.py [--fresh] [--quick]
+``--extra`` (score round 2, issue 11 problem 3): for each candidate feature g of the recorded
+extras, the model logit(COEF) * w1 + g * w2 + w0 fitted on the calibration split (the ranking
+kept, one feature added), against the model in the code, on the held-out sources: does g tell
+the right low-contrast session outlines (scored low today) from the wrong ones?
+
+Run: .venv/bin/python benchmarks/fit_image_score.py [--fresh] [--quick] [--extra] [--cached-only]
 """
 
 from __future__ import annotations
@@ -92,7 +100,7 @@ def calibration_split(data: dict) -> np.ndarray:
     at clutter (hard negatives) are left out: their share of wrong answers is set by how many
     places this script hints at, not by any use of the detector (fitted on them, the score
     came out 0.07 under-confident on the held-out cases); they are measured and shown."""
-    parts = [data[n][0] for n in ("sessions-train", "cases-train")]
+    parts = [data[n][0] for n in ("sessions-train", "cases-train") if n in data]
     return np.vstack([R[column(R, "hinted") < 1] for R in parts])
 
 
@@ -128,6 +136,61 @@ def report(data: dict, models: dict) -> None:
     print("\n".join(rows))
 
 
+# candidate features for --extra: functions of the records (FIELDS of score_samples.py)
+EXTRA = {
+    "log radius": lambda R: np.log(column(R, "radius_px")),
+    "log(edge RMS / radius)": lambda R: np.log(np.maximum(column(R, "edge_rms_px"), 0.05) / column(R, "radius_px")),
+    "log min(radius, 30 px)": lambda R: np.log(np.minimum(column(R, "radius_px"), 30.0)),
+    "log min(radius, 45 px) (the size term adopted)": lambda R: size_of(R),
+    "log arc seen (coverage x radius)": lambda R: np.log(column(R, "outline_coverage") * column(R, "radius_px")),
+    "fit quality (share seen, spread-discounted)": lambda R: column(R, "fit_quality"),
+    "log contrast x log radius": lambda R: np.log1p(column(R, "edge_contrast")) * np.log(column(R, "radius_px")),
+}
+
+
+def _gaps(p: np.ndarray, y: np.ndarray) -> tuple[str, str]:
+    """(gap (n) per score bin, worst gap among bins of >= 20)."""
+    rows = image_score.reliability_rows(list(zip(p, y)))
+    worst = [abs(r - m) for _, _, n, m, r in rows if n >= 20]
+    return (" / ".join(f"{r - m:+.3f} ({n})" for _, _, n, m, r in rows), f"{max(worst):.3f}" if worst else "-")
+
+
+def extra_table(data: dict, cal: np.ndarray) -> None:
+    """The --extra comparison (see the module doc): free search of every test source."""
+    z_of = lambda R: np.array([image_score.logit(x) for x in feature_matrix(R)])  # noqa: E731
+    sig = lambda t: 1.0 / (1.0 + np.exp(-t))  # noqa: E731
+    models = {"in the code (COEF + PLATT)": (None, lambda R: np.array([image_score.probability(x, 0.0)
+                                                                        for x in feature_matrix(R)]))}
+    for name, g in EXTRA.items():
+        w = image_score.fit_logistic(np.column_stack([z_of(cal), g(cal)]), column(cal, "right"), l2=1e-3)
+        models[f"logit + {name}"] = (w, lambda R, w=w, g=g: sig(w[0] + w[1] * z_of(R) + w[2] * g(R)))
+    print("\n| model | weights (w0, w_logit, w_g) | source | free detections | wrong | wrong scored >= 0.5 "
+          "| right scored < 0.5 | gap per score bin (n) | worst gap, bins >= 20 |")
+    print("|---|---|---|---|---|---|---|---|---|")
+    for label, (w, prob) in models.items():
+        for name, (R, train) in data.items():
+            R = R[column(R, "hinted") < 1]
+            if train or not len(R):
+                continue
+            p, y = prob(R), column(R, "right") > 0.5
+            per_bin, worst = _gaps(p, y)
+            ws = "-" if w is None else ", ".join(f"{v:.3f}" for v in w)
+            print(f"| {label} | {ws} | {name} | {len(R)} | {int((~y).sum())} | {int((~y & (p >= 0.5)).sum())} "
+                  f"| {int((y & (p < 0.5)).sum())} | {per_bin} | {worst} |")
+
+
+def size_of(R: np.ndarray) -> np.ndarray:
+    """image_score.size_term of every record."""
+    return np.array([image_score.size_term(x) for x in feature_matrix(R)])
+
+
+def fit_size_calibration(cal: np.ndarray) -> np.ndarray:
+    """(w0, w_logit, w_size) of image_score.CALIBRATION: logistic regression of right on the
+    logit and the capped size term, over the calibration split."""
+    z = np.array([image_score.logit(x) for x in feature_matrix(cal)])
+    return image_score.fit_logistic(np.column_stack([z, size_of(cal)]), column(cal, "right"), l2=1e-3)
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--cache", default="/tmp/sonarcal-score-samples")
@@ -136,6 +199,7 @@ def main(argv=None) -> int:
     ap.add_argument("--refit", action="store_true", help="also show a fresh ridge logistic (the rejected option)")
     ap.add_argument("--cached-only", action="store_true", help="use only the sources already collected")
     ap.add_argument("--l2", type=float, default=image_score.L2)
+    ap.add_argument("--extra", action="store_true", help="only the candidate-feature comparison (see the doc)")
     a = ap.parse_args(argv)
     cache = Path(a.cache) / ("quick" if a.quick else "full")
     data = {name: (load(name, make, cache, a.fresh), train) for name, (make, train) in sources(a.quick).items()
@@ -145,15 +209,23 @@ def main(argv=None) -> int:
         merged = np.vstack([data.pop(k)[0] for k in quarters])
         data["sessions-test"] = (merged, False)
     cal = calibration_split(data)
+    if a.extra:
+        extra_table(data, cal)
+        print("load average:", Path("/proc/loadavg").read_text().split()[:3])
+        return 0
     z_cal = np.array([image_score.logit(x) for x in feature_matrix(cal)])
     y_cal = column(cal, "right")
     platt = image_score.recalibrate(z_cal, y_cal)
     print(f"\ncalibration split: {len(y_cal)} detections, {int(y_cal.sum())} right, {int(len(y_cal) - y_cal.sum())} "
           f"wrong ({int(column(cal, 'hinted').sum())} from hinted looks)")
     print(f"PLATT = ({platt[0]:.4f}, {platt[1]:.4f})   (in the code now: {image_score.PLATT})")
+    cal_w = fit_size_calibration(cal)
+    print(f"CALIBRATION = ({cal_w[0]:.3f}, {cal_w[1]:.3f}, {cal_w[2]:.3f})   (in the code now: "
+          f"{image_score.CALIBRATION})")
     sig = lambda t: 1.0 / (1.0 + np.exp(-t))  # noqa: E731
-    models = {"logistic alone (before)": lambda z, R: sig(z),
-              "recalibrated (new PLATT)": lambda z, R: sig(platt[0] * z + platt[1])}
+    models = {"logistic alone": lambda z, R: sig(z),
+              "Platt line alone (score round 1)": lambda z, R: sig(platt[0] * z + platt[1]),
+              "with the size term (new CALIBRATION)": lambda z, R: sig(cal_w[0] + cal_w[1] * z + cal_w[2] * size_of(R))}
     if a.refit:
         train = np.vstack([R for R, t in data.values() if t])
         fresh = image_score.fit(feature_matrix(train), column(train, "right"), l2=a.l2)

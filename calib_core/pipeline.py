@@ -21,7 +21,8 @@ import numpy as np
 from calib_core.detect.entries import (SessionData, _as_data, beam_capture_ids, beam_crop_of,  # noqa: F401  (public API)
                                        beam_width_from_crops, detect_image_entry, detect_one, detect_sonar_entry,
                                        estimate_session_beam_width, session_beam_width)
-from calib_core.detect.image_score import from_raw
+from calib_core.detect.image_score import entry_logit
+from calib_core.detect.reasons import range_is_measured
 from calib_core.detections import is_operator_entry, merge_auto, now_iso
 from calib_core.errors import SessionError
 from calib_core.session import Session
@@ -193,7 +194,7 @@ def _resolve_round(data: SessionData, detections: dict, cam: str, only: set) -> 
         hint = {"hint_uv_px": [round(float(u), 3), round(float(v), 3)], "hint_radius_px": round(float(radius_px), 3)}
         refit = (entry.get("center") is not None and np.hypot(entry["center"][0] - u, entry["center"][1] - v) < 0.5 * radius_px
                  and _range_agrees(entry.get("range_m"), rng_m))
-        if cid in res.predicted_uvr and _trusted(res, len(cands), cid) and not (refit and entry.get("score", 0) >= CLEAR_SCORE):
+        if cid in res.predicted_uvr and _trusted(res, len(cands), cid) and not (refit and _clear_refit(entry)):
             # a well supported registration knows the size too: the look at the predicted place and
             # size beats a faint free refit (which may have taken a larger outline around it)
             looked = _look_at_prediction(data, cid, cam, (u, v, rng_m), res, detections[cid][cam], hint)
@@ -257,9 +258,18 @@ PREDICTION_MIN_SUPPORT = 4
 PREDICTION_MAX_RANGE_RMS = 0.04
 
 
-# a free refit scored this high (or more) is kept over the look at the predicted size: the score
-# model's even odds before its recalibration (0.78 as a recalibrated probability), as it was set
-CLEAR_SCORE = from_raw(0.5)
+# a free refit is kept over the look at the predicted size when the score model's logistic gives it
+# even odds or more before any calibration (a threshold set on that scale: recalibrations of the
+# score leave the decision alone); an entry that records no outline features, when its score is
+# at least CLEAR_SCORE (the same threshold through the first round's Platt line)
+CLEAR_LOGIT = 0.0
+CLEAR_SCORE = 0.7831
+
+
+def _clear_refit(entry: dict) -> bool:
+    """Whether a free refit is clear enough to keep over the look (CLEAR_LOGIT / CLEAR_SCORE)."""
+    z = entry_logit(entry)
+    return z >= CLEAR_LOGIT if z is not None else entry.get("score", 0) >= CLEAR_SCORE
 
 
 def _range_agrees(range_m, predicted_m: float) -> bool:
@@ -402,7 +412,8 @@ class Correspondences:
         statuses: (image status, sonar status) per row.
         skipped: {capture_id: reason} for captures not used.
         range_m, range_sigma_m: (N,) the image detection's camera-to-centre range (m, from the known
-            diameter) and its 1-sigma; NaN where the entry has none (e.g. a click).
+            diameter) and its 1-sigma; NaN where the entry has none (e.g. a click) or where its size
+            was pulled towards the sonar's prediction (a look at the predicted place).
     """
 
     capture_ids: list[str]
@@ -459,7 +470,9 @@ def correspondences(session: Session, detections: dict, cam: str) -> Corresponde
         X.append(son["center"])
         cX.append(_cov(son, "cov_m2", 3, DEFAULT_SIGMA_SONAR_M))
         st.append((img["status"], son["status"]))
-        rng.append([_number(img.get("range_m")), _number(img.get("range_sigma_m"))])
+        # a range pulled towards the sonar-predicted size would pull the apparent-size scale to 1
+        rng.append([_number(img.get("range_m")), _number(img.get("range_sigma_m"))] if range_is_measured(img)
+                   else [float("nan")] * 2)
     return Correspondences(ids, np.asarray(uv, float).reshape(-1, 2), np.asarray(cuv, float).reshape(-1, 2, 2),
                            np.asarray(X, float).reshape(-1, 3), np.asarray(cX, float).reshape(-1, 3, 3), st, skipped,
                            np.asarray(rng, float).reshape(-1, 2)[:, 0], np.asarray(rng, float).reshape(-1, 2)[:, 1])

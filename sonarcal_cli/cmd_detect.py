@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from calib_core.detect.reasons import entry_note
+from calib_core.detect.reasons import entry_note, score_text
 from calib_core.errors import SessionError
 from calib_core.detections import load_detections, save_detections
 from calib_core.pipeline import SessionData, detect_session
@@ -53,7 +53,7 @@ def run(args) -> int:
             if e.get("center") is None and e.get("status") != "rejected":
                 missing += 1
             seen = e.get("diameter_m") or e.get("apparent_diameter_m")
-            rows.append([cap.id, sensor, e.get("status", ""), _fmt_center(e), f"{e.get('score', 0):.2f}",
+            rows.append([cap.id, sensor, e.get("status", ""), _fmt_center(e), score_text(e) or "-",
                          f"{seen * 1000:.0f} mm" if seen else "-", entry_note(e)])
     console.print(table(f"Detections ({session.name})", ["capture", "sensor", "status", "centre", "score",
                                                          "diameter seen", "reason"], rows))

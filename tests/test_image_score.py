@@ -51,9 +51,31 @@ def test_probability_applies_the_recalibration_to_the_logit():
     x = features(ex, 40.0, 0.9)
     z = logit(x)
     assert np.isclose(probability(x, 0.0, platt=(1.0, 0.0)), 1 / (1 + np.exp(-z)))
-    a, b = image_score.PLATT
-    assert np.isclose(probability(x, 0.0), 1 / (1 + np.exp(-(a * z + b))))
-    assert a > 0  # monotone: the ranking of the logistic is kept
+    w0, w1, w2 = image_score.CALIBRATION
+    assert np.isclose(probability(x, 0.0), 1 / (1 + np.exp(-(w0 + w1 * z + w2 * np.log(40.0)))))
+    assert w1 > 0 and w2 > 0  # monotone: the ranking of the logistic is kept
+
+
+def test_size_term_raises_the_score_of_larger_outlines_up_to_the_cap():
+    """A low-contrast, rough outline (as the right ones in the sessions scored 0.2-0.7): larger is
+    likelier right (a texture arc makes a small circle more easily), no gain past the cap."""
+    ex = {"outline_coverage": 0.75, "edge_rms_px": 0.65, "outside_mismatch": 0.2, "edge_contrast": 12.0}
+    p = {r: probability(features(ex, r, 0.05 * r), 0.0) for r in (15.0, 30.0, 45.0, 60.0, 90.0)}
+    assert p[15.0] < p[30.0] < p[45.0]
+    # past the cap only the logistic's own (weak) size feature still acts
+    z = {r: logit(features(ex, r, 0.05 * r)) for r in (45.0, 90.0)}
+    w1 = image_score.CALIBRATION[1]
+    assert np.isclose(np.log(p[90.0] / (1 - p[90.0])) - np.log(p[45.0] / (1 - p[45.0])), w1 * (z[90.0] - z[45.0]))
+    assert p[60.0] > 0.8 > probability(features(ex, 15.0, 0.75), 0.0)
+
+
+def test_entry_logit_reads_the_features_an_entry_records():
+    from calib_core.detect.image_fit import clean_rms_px
+
+    e = {"center": [1.0, 2.0], "radius_px": 40.0, "outline_coverage": 0.8, "edge_rms_px": 0.4,
+         "outside_mismatch": 0.05, "edge_contrast": 30.0, "runner_up_ratio": 0.1}
+    assert np.isclose(image_score.entry_logit(e), logit(features(e, 40.0, clean_rms_px(40.0))))
+    assert image_score.entry_logit({"center": [1.0, 2.0], "score": 0.9}) is None
 
 
 def test_probability_is_monotone_and_bounded():

@@ -15,6 +15,14 @@ free parameter, so a short arc fixes the centre. Steps:
 4. a verdict with the reason an operator reads: found, "outline 62 % hidden near the sonar's
    prediction", "no round outline near the sonar's prediction".
 
+A found outline has no probability (``score`` None: no calibration of the look exists yet);
+it records ``outline_seen`` (the share of the outline seen, discounted by its spread), shown
+under that name (:func:`calib_core.detect.reasons.score_text`), and ``range_prior_rel_sigma``:
+its size, hence its range, follows the prediction's (the circle search of step 2 picks the edge
+points that fit the predicted radius; the prior of step 3 adds little: ``bench_predicted_look.py
+--range-bias``), so the one-camera apparent-size scale leaves its range out
+(:func:`calib_core.pipeline.correspondences`).
+
 The caller (:func:`calib_core.pipeline._resolve_ambiguous_images`) checks the result against the
 registration before keeping it; this module only looks.
 """
@@ -30,6 +38,7 @@ from calib_core.detect.image import CUT, NO_OUTLINE, prepare_background
 from calib_core.detect.image_edges import gradient_magnitude, outward_normals
 from calib_core.detect.image_fit import (CORR_LENGTH_PX, EDGE_NOISE_FACTOR, EDGE_SPACING_PX, SYS_FRACTION, _Signal,
                                          clean_rms_px)
+from calib_core.detect.reasons import OUTLINE_SEEN_KEY, RANGE_PRIOR_KEY
 from calib_core.detect.types import ImageDetection
 
 WHERE = "near the sonar's prediction"
@@ -160,7 +169,7 @@ def _nearest_per_normal(pts: np.ndarray, normal_of: np.ndarray, c: np.ndarray, R
 
 
 def _not_found(reason: str, **extras) -> ImageDetection:
-    return ImageDetection(found=False, reason=reason, method="ellipse-exact", extras=extras)
+    return ImageDetection(found=False, score=None, reason=reason, method="ellipse-exact", extras=extras)
 
 
 def detect_at_prediction(image: np.ndarray, cam: CameraModel, sphere_radius_m: float, uv_px, radius_px: float,
@@ -237,9 +246,11 @@ def _verdict(cam, fit: ConeFit, support: float, k: int, R: float, sphere_radius_
     rng_sigma = float(sphere_radius_m * np.cos(fit.a_rad) / np.sin(fit.a_rad) ** 2 * np.sqrt(fit.cov_params[2, 2]))
     extras.update(range_sigma_m=round(rng_sigma, 5), angular_radius_deg=round(float(np.degrees(fit.a_rad)), 5),
                   outline_coverage=round(support, 3))
-    # the score: the share of the outline seen, discounted by its spread (as the free search's fit score)
-    score = float(support * np.exp(-max(0.0, fit.sigma_px - 0.3) / 0.7))
-    return ImageDetection(found=True, center_uv_px=centre, cov_uv_px2=cov, score=round(score, 4),
+    # no probability (score None): the share of the outline seen, discounted by its spread (as the
+    # free search's fit score), under its own name; and the range marked as following the prediction
+    extras.update({OUTLINE_SEEN_KEY: round(float(support * np.exp(-max(0.0, fit.sigma_px - 0.3) / 0.7)), 4),
+                   RANGE_PRIOR_KEY: PRIOR_REL_SIGMA})
+    return ImageDetection(found=True, center_uv_px=centre, cov_uv_px2=cov, score=None,
                           ellipse_px=((float(centre[0]), float(centre[1])), (2 * r_px, 2 * r_px), 0.0),
                           radius_px=r_px, range_m=float(sphere_radius_m / np.sin(fit.a_rad)),
                           method="ellipse-exact", extras=extras)

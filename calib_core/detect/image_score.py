@@ -1,8 +1,9 @@
 """The image detection's score as a probability: P(the detection is the sphere, within 3 px).
 
 Two stages. A logistic model on features of the accepted outline (COEF; fitted on synthetic
-single-image cases, training seeds 0-39, the second-round fit), then a monotone recalibration
-of its logit (PLATT: p = sigmoid(a * logit + b)) fitted by ``benchmarks/fit_image_score.py``
+single-image cases, training seeds 0-39, the second-round fit), then a recalibration of its
+logit, monotone in it (CALIBRATION since score round 2, with a capped size term, see below;
+PLATT: p = sigmoid(a * logit + b) before, kept for comparison) fitted by ``benchmarks/fit_image_score.py``
 on the free search in training data: generated sessions of the holder / room presets (seeds
 1-3, which the logistic never saw) and the single-image cases (seeds 0-39). Hard negatives
 (the detector's verification run, as the sonar-guided look runs it, at the places of the
@@ -17,6 +18,15 @@ detections under 0.5 whatever the ridge weight and feature subset tried. A two-p
 monotone map keeps the ranking that transfers and only corrects how far apart the
 probabilities are (the logistic alone was too sure at both ends: right session outlines of low
 contrast scored ~0.2).
+
+Score round 2: the recalibration also reads the outline's apparent size, capped. Right
+outlines of low contrast in the generated sessions (radius 45-90 px, contrast 8-25) scored
+0.2-0.7 although all were right, because the training's wrong answers are small outlines
+(radius 13-26 px: a texture arc makes a small circle far more easily than a large one, the
+number of edge samples that must agree grows with the perimeter). So p = sigmoid(w0 + w1 *
+logit + w2 * min(log radius, log RADIUS_CAP_PX)) (CALIBRATION, fitted by fit_image_score.py on
+the same calibration split as PLATT). The cap: no extra confidence beyond RADIUS_CAP_PX (an
+uncapped size term was rejected in the first round: any large rough outline scored ~1.00).
 
 Approximation: synthetic scenes are not real ones; the reliability tables say how far the
 probabilities can be trusted on each.
@@ -37,6 +47,10 @@ COEF = np.array([-5.2736, 1.2452, -9.0932, -4.8996, 2.6376, 0.0000, 0.5479])
 # free search of the training data (314 detections, 305 right, 9 wrong; detector of main at 01111cd)
 PLATT = (0.6492, 1.2840)
 L2 = 1.0  # ridge weight of the comparison refit (fit_image_score.py --refit)
+# (w0, w_logit, w_size) of p = sigmoid(w0 + w_logit * logit + w_size * size_term): fit_image_score.py
+# on the calibration split (free search of sessions-train and cases-train; score round 2)
+CALIBRATION = (-14.700, 0.911, 5.240)
+RADIUS_CAP_PX = 45.0  # the size term stops growing here (see the module docstring)
 
 
 def features(extras: dict, radius_px: float, clean_rms_px: float) -> np.ndarray:
@@ -54,19 +68,31 @@ def logit(x: np.ndarray, coef: np.ndarray = COEF) -> float:
     return float(coef[0] + np.dot(coef[1:], x))
 
 
+def size_term(x: np.ndarray) -> float:
+    """min(log radius, log RADIUS_CAP_PX) of feature vector ``x``."""
+    return float(min(x[FEATURES.index("log_radius")], np.log(RADIUS_CAP_PX)))
+
+
 def probability(x: np.ndarray, fallback: float, platt: tuple[float, float] | None = None) -> float:
-    """P(right) for feature vector ``x`` (recalibrated); ``fallback`` when no model is fitted."""
+    """P(right) for feature vector ``x`` (CALIBRATION; or, given ``platt``, that Platt line on the
+    logit alone, the first round's form); ``fallback`` when no model is fitted."""
     if COEF is None:
         return float(fallback)
-    a, b = PLATT if platt is None else platt
-    return float(_sigmoid(a * logit(x) + b))
+    if platt is not None:
+        return float(_sigmoid(platt[0] * logit(x) + platt[1]))
+    w0, w1, w2 = CALIBRATION
+    return float(_sigmoid(w0 + w1 * logit(x) + w2 * size_term(x)))
 
 
-def from_raw(p_raw: float) -> float:
-    """The recalibrated probability of a score the uncorrected logistic put at ``p_raw`` (keeps
-    thresholds set on the old scale meaning the same outlines)."""
-    z = float(np.log(p_raw / (1.0 - p_raw)))
-    return float(_sigmoid(PLATT[0] * z + PLATT[1]))
+def entry_logit(entry: dict) -> float | None:
+    """The logistic's log-odds (before any calibration) of a detections.yaml image entry of the
+    free search, from the outline features it records; None when it records none."""
+    from calib_core.detect.image_fit import clean_rms_px
+
+    r = entry.get("radius_px")
+    if not isinstance(r, (int, float)) or "outline_coverage" not in entry:
+        return None
+    return logit(features(entry, float(r), clean_rms_px(float(r))))
 
 
 def recalibrate(z: np.ndarray, y: np.ndarray) -> tuple[float, float]:

@@ -18,6 +18,17 @@ RESIDUAL_PROBLEM_PX = 5.0
 # metres: a lab or harbour scene in millimetres lies 500-20000 "m" away
 MM_CLOUD_MEDIAN_M = 250.0
 
+# An image entry from the look at the sonar-predicted place and size (calib_core.detect.image_predicted)
+# has no probability: no ``score``, but the share of its outline seen (discounted by the outline's
+# spread) under this key, shown with OUTLINE_SEEN_LABEL wherever a score is shown ...
+OUTLINE_SEEN_KEY = "outline_seen"
+OUTLINE_SEEN_LABEL = "outline seen"
+# ... and, under this key (the value: the look's size prior, relative), a mark that its size (its
+# range) follows the prediction's (the look searches circles of the predicted size; slope ~1 in
+# bench_predicted_look.py --range-bias): such a range repeats the sonar's scale and is left out
+# of the apparent-size scale
+RANGE_PRIOR_KEY = "range_prior_rel_sigma"
+
 
 def reason_kind(reason: str) -> str:
     """A reason without its numbers and places: "outline 40 % hidden ... at (3, 4)" ->
@@ -52,6 +63,37 @@ def entry_note(entry) -> str:
     if entry.get("resolved_by"):
         return f"chosen by {entry['resolved_by']}"
     return entry.get("reason") or ""
+
+
+def entry_score(entry) -> float | None:
+    """The entry's probability of being right (``score``), or None when it has none (a look at
+    the predicted place, a click, a missing entry)."""
+    v = entry.get("score") if isinstance(entry, dict) else None
+    return float(v) if isinstance(v, (int, float)) and not isinstance(v, bool) else None
+
+
+def score_text(entry) -> str:
+    """The score column of a detection table: "0.93" (a probability); "outline seen 62 %" for a
+    look at the predicted place, which has no probability; "" when neither is known."""
+    p = entry_score(entry)
+    if p is not None:
+        return f"{p:.2f}"
+    seen = entry.get(OUTLINE_SEEN_KEY) if isinstance(entry, dict) else None
+    if isinstance(seen, (int, float)) and not isinstance(seen, bool):
+        return f"{OUTLINE_SEEN_LABEL} {100 * float(seen):.0f} %"
+    return ""
+
+
+def score_phrase(entry) -> str:
+    """"score 0.93", "outline seen 62 %" (a look at the predicted place) or "" (see score_text)."""
+    text = score_text(entry)
+    return f"score {text}" if entry_score(entry) is not None else text
+
+
+def range_is_measured(entry) -> bool:
+    """Whether an image entry's ``range_m`` is the apparent size's own measure (not one that
+    follows another sensor's prediction, see RANGE_PRIOR_KEY)."""
+    return isinstance(entry, dict) and not entry.get(RANGE_PRIOR_KEY)
 
 
 def residual_problem(sensor: str, residual_px) -> str | None:

@@ -30,7 +30,9 @@ growing with the square of the range for a depth camera) and judged at each cand
 More than one acceptable candidate gives "two candidates" unless one has CLEAR_WINNER times the
 other's evidence (score x agreement of the size seen with session.yaml's, given how precisely it
 was measured x scatter against the sensor noise: a carried ball beats the shoulders and head of
-the person behind it); a sphere of another size is reported, not used. Every refusal says why, in words an operator can act on.
+the person behind it), or when only the leader's outline hangs free while a surface continues every
+other one's over a long arc (a head on its shoulders: :func:`_free_leader`); a sphere of another
+size is reported, not used. Every refusal says why, in words an operator can act on.
 The effective beam width (down to 0) is estimated per session with
 :func:`calib_core.detect.sonar_beam.estimate_beam_width_deg`.
 
@@ -49,7 +51,13 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from calib_core.detect.sonar_fit import FitResult, angle_to_axis_rad, cone_residuals, fit_sphere
-from calib_core.detect.sonar_outline import attached_sectors, attached_span, free_outline_mask, roughness_m
+from calib_core.detect.sonar_outline import (
+    attached_sectors,
+    attached_span,
+    free_outline_mask,
+    longest_attached_arc,
+    roughness_m,
+)
 from calib_core.detect.sonar_search import (
     Candidate,
     disc_coverage,
@@ -58,6 +66,7 @@ from calib_core.detect.sonar_search import (
     noise_at,
     start_center,
 )
+from calib_core.detect.sonar_streams import lowest_hashes
 from calib_core.detect.types import SonarDetection
 
 METHODS = ("cone-model", "known-radius", "free-radius")
@@ -84,6 +93,8 @@ SIZE_GATE = 0.5  # radii from the known-radius sphere: returns further off do no
 SIZE_SYSTEMATIC = 0.03  # relative: how far off a sensor may see a sphere's size (see _Judged.evidence)
 DIAMETER_WARN = 0.06  # relative: above it a found sphere carries a warning
 CLEAR_WINNER = 3.0  # score ratio above which the best of two same-size candidates is taken
+FREE_ARC = 3  # of 16 sectors, in one run: what a hand, a stick or a chain continues of a ball's outline
+BODY_ARC = 5  # of 16 (over 110 deg): a round thing on a larger body (a head on shoulders, a rock in the seabed)
 MODEL_FLOOR_BEAM_FRACTION = 0.02  # 1-sigma model error per axis, as a fraction of range x beam width
 
 
@@ -191,11 +202,10 @@ def _crop(P: np.ndarray, cand: Candidate, r: float, h: float):
     cn0 = float(np.linalg.norm(cand.center_m))
     start = start_center(cand, r)
     idx = crop_ball(P, start, 1.6 * r + cn0 * np.tan(h) + 0.05)
-    if len(idx) > JUDGE_POINTS:  # judged on a random subset; _finish refits on them all
-        idx_j = np.sort(np.random.default_rng(0).choice(len(idx), JUDGE_POINTS, replace=False))
-    else:
-        idx_j = np.arange(len(idx))
-    return start, idx, idx_j
+    # the crop in an order keyed to the points themselves (the same whatever their order in
+    # the cloud or what else it holds); judged on its first JUDGE_POINTS, _finish refits on all
+    idx = idx[lowest_hashes(P[idx], len(idx))]
+    return start, idx, np.arange(min(len(idx), JUDGE_POINTS))
 
 
 def _size_seen(X, D, fit: FitResult, r: float, h: float) -> tuple[float, float]:
@@ -399,7 +409,8 @@ def detect_sphere_in_cloud(points_sonar_m: np.ndarray, sphere_radius_m: float,
             sphere: only points within ``seed_radius_m`` + a sphere's reach are searched, and
             the acceptable candidate nearest the pick wins.
         seed_radius_m: search radius around the seed (m).
-        rng_seed: seed of the random thinning and RANSAC (results are deterministic).
+        rng_seed: key of the thinning and RANSAC draws (:mod:`.sonar_streams`; results are
+            deterministic, and each cluster's draws depend on its own returns only).
 
     Returns:
         :class:`SonarDetection`; ``found=False`` with a ``reason`` when nothing trustworthy is
@@ -410,32 +421,45 @@ def detect_sphere_in_cloud(points_sonar_m: np.ndarray, sphere_radius_m: float,
     P = np.asarray(points_sonar_m, dtype=float).reshape(-1, 3)
     r = float(sphere_radius_m)
     h = np.radians(float(beam_width_deg)) / 2.0
-    n_all = len(P)
-    if n_all == 0:
-        return _not_found("empty cloud", method, n_points=0)
-    if n_all < MIN_POINTS:
-        return _not_found(f"too few points ({n_all} < {MIN_POINTS})", method, n_points=n_all)
     seed = None if seed_center_m is None else np.asarray(seed_center_m, float).reshape(3)
-    base = None if seed is None else _near_pick(P, seed, seed_radius_m, r, h)
-    if base is not None and len(base) < MIN_POINTS:
-        return _not_found(f"too few points near the picked point ({len(base)})", method, n_points=n_all)
+    base, why = _working_points(P, seed, seed_radius_m, r, h)
+    if why:
+        return _not_found(why, method, n_points=len(P))
     W = P if base is None else P[base]
-    cands, info = find_candidates(W, r, h, np.random.default_rng(rng_seed), max_candidates=MAX_JUDGED)
+    cands, info = find_candidates(W, r, h, rng_seed, max_candidates=MAX_JUDGED)
     if not cands:
-        return _not_found("no sphere-like cluster", method, n_points=n_all,
+        return _not_found("no sphere-like cluster", method, n_points=len(P),
                           n_clusters=int(info.get("n_clusters", 0)))
     if seed is not None:
-        cands = sorted(cands, key=lambda k: np.linalg.norm(k.center_m - seed))
-        cands = [k for k in cands if np.linalg.norm(k.center_m - seed) < seed_radius_m + 2 * r]
+        cands = _near_seed(cands, seed, seed_radius_m + 2 * r)
         if not cands:
-            return _not_found("nothing sphere-like near the picked point", method, n_points=n_all)
+            return _not_found("nothing sphere-like near the picked point", method, n_points=len(P))
     # the sensor's noise where each candidate is (a depth camera's grows with range)
     judged = [_judge(W, k, r, h, seed is not None, _noise_near(info, k.center_m)) for k in cands[:MAX_FULL]]
-    chosen, extras = _choose(judged, r, seed)
+    chosen, extras = _choose(judged, r, seed, W, h)
     if chosen is None:
         reason = extras.pop("reason")
-        return _not_found(reason, method, n_points=n_all, **extras)
-    return _finish(P, W, base, chosen, r, h, method, n_all, info, extras)
+        return _not_found(reason, method, n_points=len(P), **extras)
+    return _finish(P, W, base, chosen, r, h, method, len(P), info, extras)
+
+
+def _working_points(P, seed, seed_radius_m: float, r: float, h: float) -> tuple[np.ndarray | None, str]:
+    """(indices of the points searched, None for all of them; why nothing can be searched, or
+    "") for the cloud ``P`` and an operator's pick ``seed`` (or None)."""
+    if len(P) == 0:
+        return None, "empty cloud"
+    if len(P) < MIN_POINTS:
+        return None, f"too few points ({len(P)} < {MIN_POINTS})"
+    base = None if seed is None else _near_pick(P, seed, seed_radius_m, r, h)
+    if base is not None and len(base) < MIN_POINTS:
+        return None, f"too few points near the picked point ({len(base)})"
+    return base, ""
+
+
+def _near_seed(cands: list[Candidate], seed: np.ndarray, reach_m: float) -> list[Candidate]:
+    """The candidates within ``reach_m`` of an operator's pick, nearest first."""
+    near = sorted(cands, key=lambda k: np.linalg.norm(k.center_m - seed))
+    return [k for k in near if np.linalg.norm(k.center_m - seed) < reach_m]
 
 
 def _near_pick(P, seed, seed_radius_m: float, r: float, h: float) -> np.ndarray:
@@ -451,10 +475,11 @@ def _noise_near(info: dict, center_m) -> float:
     return float(np.nanmax([at, info["noise_m"]])) if np.isfinite(info["noise_m"]) else float("nan")
 
 
-def _choose(judged: list[_Judged], r: float, seed) -> tuple[_Judged | None, dict]:
+def _choose(judged: list[_Judged], r: float, seed, W: np.ndarray, h: float) -> tuple[_Judged | None, dict]:
     """The candidate to use and the detection's extras, or (None, extras with a ``reason``):
     the operator's pick decides when there is one; else one candidate of the session's size
-    (a second one is tolerated when the first has CLEAR_WINNER times its evidence)."""
+    (a second one is tolerated when the first has CLEAR_WINNER times its evidence, or when
+    only the first hangs free: :func:`_free_leader`)."""
     good = _dedupe([j for j in judged if not j.problem], r)
     if not good:
         best = max(judged, key=lambda j: j.score)
@@ -466,13 +491,11 @@ def _choose(judged: list[_Judged], r: float, seed) -> tuple[_Judged | None, dict
     other = [j for j in good if j.radius_fit_m != r]
     if seed is not None:  # the operator's pick decides, whatever its size
         return min(good, key=lambda j: np.linalg.norm(j.fit.center_m - seed)), {}
+    resolved = ""
     if len(nominal) > 1 and nominal[0].evidence(r) < CLEAR_WINNER * nominal[1].evidence(r):
-        at = " and ".join(f"{np.linalg.norm(k.fit.center_m):.2f} m" for k in nominal[:3])
-        pos = "; ".join(str(np.round(k.fit.center_m, 3).tolist()) for k in nominal[:3])
-        return None, {"reason": f"two candidates: round objects of the sphere's size at {at} "
-                                f"(centres {pos} m)", "n_candidates": len(good),
-                      "two_candidates": _centres(nominal),
-                      "candidate_evidence": [round(j.evidence(r), 4) for j in nominal]}
+        resolved = _free_leader(nominal, W, r, h)
+        if not resolved:
+            return None, _two_candidates(nominal, r, len(good))
     if not nominal:  # sphere-like, but not of session.yaml's size: a decoy or a wrong diameter
         k = max(other, key=lambda j: j.score)
         return None, {"reason": f"only a sphere of another size: seen {2 * k.radius_cone_m:.3f} m across, "
@@ -488,7 +511,45 @@ def _choose(judged: list[_Judged], r: float, seed) -> tuple[_Judged | None, dict
         extras["other_candidates"] = _centres(nominal[1:])
     if other:
         extras["ignored_other_sizes_m"] = [round(2 * k.radius_cone_m, 4) for k in other]
+    if resolved:
+        extras["resolved_by"] = resolved
     return chosen, extras
+
+
+def _two_candidates(nominal: list[_Judged], r: float, n_good: int) -> dict:
+    """The extras of a "two candidates" refusal (with each candidate's centre and evidence)."""
+    at = " and ".join(f"{np.linalg.norm(k.fit.center_m):.2f} m" for k in nominal[:3])
+    pos = "; ".join(str(np.round(k.fit.center_m, 3).tolist()) for k in nominal[:3])
+    return {"reason": f"two candidates: round objects of the sphere's size at {at} (centres {pos} m)",
+            "n_candidates": n_good, "two_candidates": _centres(nominal),
+            "candidate_evidence": [round(j.evidence(r), 4) for j in nominal]}
+
+
+def _free_leader(nominal: list[_Judged], W: np.ndarray, r: float, h: float) -> str:
+    """Why the candidate with the most evidence (not CLEAR_WINNER times the next) is the sphere
+    after all, or "": its outline hangs free but for what holds it (at most FREE_ARC sectors in
+    one run: a hand, a stick, a chain), while a surface continues every other one's over a long
+    arc (at least BODY_ARC sectors: the body a head sits on, the seabed a rock is buried in).
+    It only ever confirms the leader: a round thing that is part of something larger is not
+    the loose ball, but a loose round thing is not always the ball."""
+    arcs = [longest_attached_arc(_attached(W, j, r, h)) for j in nominal]
+    if arcs[0] > FREE_ARC or min(arcs[1:]) < BODY_ARC:
+        return ""
+    return (f"outline: the other round object{'s' if len(arcs) > 2 else ''} "
+            f"({', '.join(f'{np.linalg.norm(j.fit.center_m):.2f} m' for j in nominal[1:])}) "
+            f"continue{'' if len(arcs) > 2 else 's'} into a larger surface over "
+            f"{min(arcs[1:])}/16 of the outline or more (a head on its shoulders?); this one "
+            f"hangs free but over {arcs[0]}/16")
+
+
+def _attached(W: np.ndarray, j: _Judged, r: float, h: float) -> np.ndarray:
+    """The sectors around a judged candidate's outline that something continues
+    (:func:`calib_core.detect.sonar_outline.attached_sectors`, on the returns it was judged on)."""
+    X = W[j.idx[j.idx_j]]
+    R = np.linalg.norm(X, axis=1)
+    c = j.fit.center_m
+    cn = float(np.linalg.norm(c))
+    return attached_sectors(R, X / R[:, None], c, r, float(np.arcsin(min(r / cn, 1.0))) + h, h, j.noise_m)
 
 
 def _centres(judged: list[_Judged]) -> list[list[float]]:

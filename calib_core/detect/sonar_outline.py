@@ -95,3 +95,21 @@ def roughness_m(ranges_m: np.ndarray, dirs: np.ndarray, k: int = 8) -> float:
         return float("nan")
     _, nb = cKDTree(dirs).query(dirs, k=k + 1)
     return float(MAD_TO_SIGMA * np.median(np.abs(ranges_m - np.median(ranges_m[nb[:, 1:]], axis=1))))
+
+
+def longest_attached_arc(att: np.ndarray) -> int:
+    """The longest run of attached sectors around the outline (circular), a single free sector
+    between two attached ones counted as attached (a sparse scan misses one): a hand, a stick or
+    a chain holds a ball over 1-3 sectors, each on its own; a body below a round thing (a head
+    on its shoulders, a rock in the seabed) continues it over one long arc."""
+    att = np.asarray(att, bool)
+    n = len(att)
+    if att.all():
+        return n
+    filled = att | (np.roll(att, 1) & np.roll(att, -1))
+    start = int(np.argmin(filled))  # a free sector: unroll the circle there
+    best = run = 0
+    for a in np.roll(filled, -start):
+        run = run + 1 if a else 0
+        best = max(best, run)
+    return best

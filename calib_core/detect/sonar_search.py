@@ -1,7 +1,7 @@
 """Coarse search for sphere candidates in a sonar cloud (sonar frame, metres).
 
 Steps, all on a thinned copy of the cloud so that time does not grow with the point count:
-random thinning to at most ``max_points`` points, voxel downsampling (centroid per voxel),
+thinning to about ``max_points`` points (by the points' own hashes), voxel downsampling (centroid per voxel),
 removal of large planes (seabed, walls, dock faces) by RANSAC, connected-component
 clustering, then a vectorised RANSAC sphere search inside each cluster and a first
 plausibility screen (size, support, purity). The survivors are judged again at full
@@ -19,6 +19,7 @@ from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
 from calib_core.detect.sonar_fit import algebraic_sphere
+from calib_core.detect.sonar_streams import content_rng, thin_hashed
 
 
 @dataclass
@@ -42,14 +43,6 @@ def crop_ball(P: np.ndarray, center: np.ndarray, radius: float) -> np.ndarray:
     box = box[np.abs(P[box, 1] - center[1]) < radius]
     d = P[box] - center
     return box[np.einsum("ij,ij->i", d, d) < radius * radius]
-
-
-def thin_random(points_m: np.ndarray, max_points: int, rng: np.random.Generator) -> np.ndarray:
-    """At most ``max_points`` rows drawn at random (with replacement: duplicates vanish in
-    the voxel step, and drawing is O(max_points))."""
-    if len(points_m) <= max_points:
-        return points_m
-    return points_m[rng.integers(0, len(points_m), max_points)]
 
 
 def voxel_downsample(points_m: np.ndarray, voxel_m: float) -> tuple[np.ndarray, np.ndarray]:
@@ -234,7 +227,8 @@ def _plane_residuals(points_m, planes, thr_m, rng, max_points):
     """(range residuals (m), ranges (m)) of the points near the removed planes."""
     if not planes:
         return np.zeros(0), np.zeros(0)
-    S = points_m if len(points_m) <= max_points else points_m[rng.integers(0, len(points_m), max_points)]
+    sub = rng is not None and len(points_m) > max_points  # (None: the caller thinned them)
+    S = points_m[rng.integers(0, len(points_m), max_points)] if sub else points_m
     R = np.linalg.norm(S, axis=1)
     D = S / np.maximum(R, 1e-12)[:, None]
     res, rr = [], []
@@ -312,7 +306,7 @@ def ransac_sphere(X: np.ndarray, r_lo: float, r_hi: float, thr_m: float, reach_m
     cnt = (np.abs(dist - Rr[:, None]) < thr_m).sum(axis=1).astype(float)
     if r_pref is not None:
         cnt *= np.exp(-0.5 * ((Rr - r_pref) / r_pref_sd) ** 2)
-    for b in np.argsort(-cnt)[:8]:
+    for b in np.argsort(-cnt, kind="stable")[:MAX_CHECKED]:
         inl = np.abs(np.linalg.norm(X - C[b], axis=1) - Rr[b]) < thr_m
         if inl.sum() < 6:
             continue
@@ -357,29 +351,34 @@ def ring_sectors(dirs: np.ndarray, axis: np.ndarray, alpha: float, width: float,
 
 
 def find_candidates(points_m: np.ndarray, radius_m: float, half_angle_rad: float,
-                    rng: np.random.Generator, max_points: int = 40_000,
+                    key: int = 0, max_points: int = 40_000,
                     max_candidates: int = 6) -> tuple[list[Candidate], dict]:
     """Sphere candidates in a cloud (sonar frame, m) for a sphere of nominal ``radius_m``.
 
+    ``key`` seeds the random draws (:mod:`.sonar_streams`): the thinning by the points' own
+    hashes, the plane search by a stream of its own, and each cluster's RANSAC by a stream
+    seeded from that cluster's voxels, so what happens in one cluster (one more look, another
+    object far away, the points' order) does not change the draws in another.
     Returns (at most ``max_candidates`` candidates, best first, and an info dict of counts).
     """
     r = float(radius_m)
     voxel = float(np.clip(r / 3.0, 0.005, 0.15))
-    P = thin_random(points_m, max_points, rng)
+    P = thin_hashed(points_m, max_points, key)
     Q, _ = voxel_downsample(P, voxel)
     info = {"n_voxels": int(len(Q)), "voxel_m": voxel}
-    keep, planes = remove_planes(Q, min_extent_m=6.0 * r, thr_m=voxel, rng=rng)
+    keep, planes = remove_planes(Q, min_extent_m=6.0 * r, thr_m=voxel, rng=np.random.default_rng([key, 1]))
     info["planes_removed"] = len(planes)
-    info["noise_m"], info["noise_model"] = plane_noise(P, planes, voxel, rng)
+    info["noise_m"], info["noise_model"] = plane_noise(thin_hashed(P, 20_000, key), planes, voxel, None)
     Qk = Q[keep]
     labels = cluster_points(Qk, 2.2 * voxel)
     ids, counts = np.unique(labels, return_counts=True)
     cands: list[Candidate] = []
-    for cid in ids[np.argsort(-counts)]:
+    for cid in ids[np.argsort(-counts, kind="stable")]:
         X = Qk[labels == cid]
         if len(X) < MIN_VOXELS:
             break
         if np.ptp(X, axis=0).max() >= 0.6 * r:
+            rng = content_rng(X, 0.1 * voxel, key)
             cands += _cluster_candidates(X, int(cid), r, half_angle_rad, voxel, rng)
     cands.sort(key=lambda k: -k.quality)
     info["n_clusters"] = int((counts >= MIN_VOXELS).sum())
@@ -393,6 +392,7 @@ def find_candidates(points_m: np.ndarray, radius_m: float, half_angle_rad: float
 
 MIN_VOXELS = 6  # of a cluster, and on a candidate's shell
 N_HYP = 96  # RANSAC samples per look
+MAX_CHECKED = 32  # best-supported samples checked for a shell that faces the sensor
 LONG_WIDTH = 3.5  # radii: a cluster at most this wide in its two shorter extents is long and thin
 MAX_LOOKS = 12  # RANSAC looks in one cluster (a big one, a room with no plane removed, hides many round things)
 
@@ -524,3 +524,4 @@ def _dedupe(cands: list[Candidate], r: float) -> list[Candidate]:
         if all(np.linalg.norm(c.center_m - o.center_m) > r for o in out):
             out.append(c)
     return out
+

@@ -20,7 +20,9 @@ class ImageDetection:
         center_uv_px: (2,) raw (distorted) pixel of the perspective projection of the
             sphere centre (the spec's camera ``center``), not the ellipse centre.
         cov_uv_px2: (2,2) covariance of ``center_uv_px`` in px^2.
-        score: quality in [0, 1] (1 = clean full silhouette).
+        score: P(the detection is right, within 3 px) (:mod:`calib_core.detect.image_score`), or
+            None when no probability is known (the look at a predicted place: its ``outline_seen``
+            extra says how much of the outline it saw; not written to detections.yaml then).
         reason: empty when found; else e.g. "no sphere", "cut by the image border", "two candidates".
         ellipse_px: ((cx, cy), (major, minor), angle_deg) of the silhouette in raw pixels, for drawing.
         radius_px: mean apparent radius in pixels.
@@ -32,7 +34,7 @@ class ImageDetection:
     found: bool
     center_uv_px: np.ndarray | None = None
     cov_uv_px2: np.ndarray | None = None
-    score: float = 0.0
+    score: float | None = 0.0
     reason: str = ""
     ellipse_px: tuple | None = None
     radius_px: float | None = None
@@ -42,7 +44,9 @@ class ImageDetection:
 
     def to_entry(self) -> dict:
         """detections.yaml entry (status auto)."""
-        e: dict = {"status": "auto", "method": self.method, "score": round(float(self.score), 4)}
+        e: dict = {"status": "auto", "method": self.method}
+        if self.score is not None:
+            e["score"] = round(float(self.score), 4)
         if self.found:
             e["center"] = _r(self.center_uv_px, 3)
             if self.cov_uv_px2 is not None:

@@ -5,7 +5,8 @@ from __future__ import annotations
 CAUSES = ("image", "sonar", "moved")
 
 THRESHOLDS_NOTE = ("good: residual below 2 px and detector score 0.7 or more; doubtful: residual 2-5 px or "
-                   "score 0.4-0.7; bad: residual above 5 px, score below 0.4, or flagged")
+                   "score 0.4-0.7; bad: residual above 5 px, score below 0.4, or flagged; an entry without a score "
+                   "(\"outline seen\": the look where the sonar predicts the sphere) by its residual alone")
 RESIDUAL_GOOD_PX, RESIDUAL_BAD_PX = 2.0, 5.0
 SCORE_GOOD, SCORE_BAD = 0.7, 0.4
 

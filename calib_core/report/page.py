@@ -21,7 +21,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from calib_core import __version__
-from calib_core.detect.reasons import entry_note
+from calib_core.detect.reasons import entry_note, score_phrase
 from calib_core.errors import SessionError
 from calib_core.markup import escape_html
 from calib_core.report.captures import CaptureView, ReportOptions, calibrated_T, capture_view, range_scale
@@ -211,7 +211,7 @@ def _detections(session, detections, views: list[CaptureView]) -> str:
                 cs = "(" + ", ".join(f"{1000 * x:.0f}" for x in c) + ") mm"
             else:
                 cs = "(" + ", ".join(f"{x:.1f}" for x in c) + ") px" if isinstance(c, list) else ""
-            score = f" score {_fmt(e.get('score'))}" if isinstance(e, dict) and "score" in e else ""
+            score = f" {score_phrase(e)}" if isinstance(e, dict) and score_phrase(e) else ""
             if isinstance(e, dict) and c is None and st != "rejected":
                 score = f": {e.get('reason') or 'not found'}"  # a miss says why, not "score 0.00"
             thumb = f"<img src='{v.thumbs[s]}' alt='{_e(v.id)} {_e(s)}' width='160'><br>" if s in v.thumbs else ""

@@ -16,7 +16,7 @@ import numpy as np
 
 from calib_core.geometry import pose_error
 from calib_core.solve.model import CameraData, RigState, per_camera_stats, prediction_jacobian
-from calib_core.solve.gate import ALPHA
+from calib_core.solve.gate import gate_rule
 
 LOO_REFIT_MAX = 20  # above this many captures, leave-one-out uses the closed form (one refit each is slow)
 from calib_core.solve.refine import RigProblem, refine
@@ -106,19 +106,19 @@ def capture_rows(cd: CameraData, used: np.ndarray, T_cam_sonar: np.ndarray, gate
             "gate_F_critical": crit,
             "depth_m": float(depth[i]),
             "loo": loo.get(i),
-            "flags": _flags(bool(used[i]), depth[i], F, crit, None if miss_m is None else miss_m[i]),
+            "flags": _flags(bool(used[i]), depth[i], F, crit, None if miss_m is None else miss_m[i], gate_rule(len(cd))),
         })
     return rows
 
 
-def _flags(used: bool, depth: float, F, crit, miss) -> list[dict]:
+def _flags(used: bool, depth: float, F, crit, miss, rule: str) -> list[dict]:
     """The gate's verdict on one capture, with a reason an operator can act on."""
     if F is None or (used and not F > crit):
         return []
     if depth <= 0:
         why = "behind the camera"
     else:
-        why = f"F = {F:.1f} > {crit:.1f}, false-alarm rate {100 * ALPHA:g} % per camera"
+        why = f"F = {F:.1f} > {crit:.1f}, {rule}"
         if miss is not None and math.isfinite(miss):
             why += f"; its sonar centre misses the image ray by {100 * miss:.1f} cm"
     if not used:

@@ -17,8 +17,11 @@ estimated from the *other* captures, ``v_(i) = (chi2 - t_i) / (dof - 2)``, so
 whatever the stated sigmas are (a common factor on every covariance cancels). A capture is
 left out when ``F_i`` exceeds the ``1 - ALPHA / n`` quantile (Bonferroni over the n captures):
 with Gaussian noise, the chance that any good capture of a camera is dropped is at most
-``ALPHA`` (so at most ``ALPHA / n`` per good capture). Captures are removed one at a time
-(worst first, refitting after each) and re-admitted when they pass again.
+``ALPHA`` (so at most ``ALPHA / n`` per good capture). From ``TAIL_FROM`` captures on, ``F`` must
+also exceed the critical value of the same ratio under heavy tails (Student-t, 3 dof, at most 1 %
+of good captures; :mod:`calib_core.solve.tail_reference`). Captures are removed one at a time
+(worst first, refitting after each) and re-admitted when they pass again. :func:`gate_rule`
+says the rule in one sentence for every shell.
 """
 
 from __future__ import annotations
@@ -28,6 +31,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from calib_core.solve.model import CameraData, per_camera_stats, prediction_jacobian
+from calib_core.solve.tail_reference import TAIL_FROM, TAIL_LEVEL, TAIL_NU, tail_critical
 
 ALPHA = 0.01  # family-wise false-alarm rate of the gate per camera (stated in the reports)
 N_PARAMS = 6
@@ -48,6 +52,22 @@ class GateResult:
     def ratio(self) -> np.ndarray:
         """F / its critical value: > 1 means inconsistent with the others."""
         return self.F / self.crit
+
+
+def gate_rule(n: int) -> str:
+    """The drop rule for a camera with ``n`` captures, in one sentence (CLI, workbench, report)."""
+    rule = f"false-alarm rate {100 * ALPHA:g} % per camera with Gaussian noise"
+    if n >= TAIL_FROM:
+        rule += (f", and at most {100 * TAIL_LEVEL:g} % of good captures with heavy tails "
+                 f"(Student-t, {TAIL_NU} dof; {TAIL_FROM} or more captures)")
+    return rule
+
+
+def drop_critical(dof: np.ndarray, n: int, alpha: float = ALPHA) -> np.ndarray:
+    """The drop test's critical value: F's (see :func:`f_critical`), and from TAIL_FROM captures
+    on at least the heavy-tail reference's (:mod:`calib_core.solve.tail_reference`)."""
+    crit = f_critical(dof, n, alpha)
+    return np.maximum(crit, tail_critical(dof)) if n >= TAIL_FROM else crit
 
 
 def f_critical(dof: np.ndarray, n: int, alpha: float = ALPHA) -> np.ndarray:
@@ -81,7 +101,7 @@ def gate_test(cd: CameraData, T_cam_sonar: np.ndarray, cov6: np.ndarray, inl: np
     v = np.where(dof >= 1, rest / np.maximum(dof, 1), np.nan)
     F = (t / 2) / np.maximum(v, 1e-300)
     F[depth <= 0] = np.inf
-    return GateResult(t, F, f_critical(dof, len(cd), alpha), dof, chi2 / dof_fit if dof_fit > 0 else float("nan"))
+    return GateResult(t, F, drop_critical(dof, len(cd), alpha), dof, chi2 / dof_fit if dof_fit > 0 else float("nan"))
 
 
 def next_set(res: GateResult, inl: np.ndarray, min_keep: int, readmit: bool = True) -> np.ndarray | None:

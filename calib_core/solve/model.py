@@ -81,12 +81,20 @@ class CameraData:
     def __len__(self) -> int:
         return len(self.capture_ids)
 
+    def range_mask(self, mask: np.ndarray) -> np.ndarray:
+        """The rows of ``mask`` that carry a camera range (sphere's apparent size) and its sigma
+        (a click has none; a look at the predicted place has its range left out, see
+        :func:`calib_core.pipeline.correspondences`)."""
+        mask = np.asarray(mask, bool)
+        if self.range_m is None or self.range_sigma_m is None:
+            return np.zeros_like(mask)
+        r, s = self.range_m, self.range_sigma_m
+        with np.errstate(invalid="ignore"):
+            return mask & np.isfinite(r) & np.isfinite(s) & (s > 0) & (r > 0)
+
     def has_ranges(self, mask: np.ndarray) -> bool:
-        """Whether every row in ``mask`` carries a camera range (sphere's apparent size) and its sigma."""
-        if self.range_m is None or self.range_sigma_m is None or not np.any(mask):
-            return False
-        r, s = self.range_m[mask], self.range_sigma_m[mask]
-        return bool(np.all(np.isfinite(r)) and np.all(np.isfinite(s)) and np.all(s > 0) and np.all(r > 0))
+        """Whether any row in ``mask`` carries a camera range (the range terms use those rows)."""
+        return bool(np.any(self.range_mask(mask)))
 
 
 def _sym_pd(C: np.ndarray, what: str, name: str) -> np.ndarray:

@@ -63,7 +63,7 @@ def _with_outline(cd, used, prob, res, mode, robust, model: RangeModel):
 
 def range_scale_choice(cd: CameraData, used: np.ndarray, prob: RigProblem, res: RefineResult, mode: str,
                        robust: str | None, model: RangeModel | float):
-    """(ScaleChoice, extra covariance) of one camera whose every used row has an image range.
+    """(ScaleChoice, extra covariance) of one camera with image ranges on its used rows (those that have one).
 
     ``model``: the session's :class:`RangeModel`, or a float (the relative systematic of the
     ranges, for the route without an outline parameter)."""

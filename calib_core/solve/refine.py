@@ -58,9 +58,9 @@ class RigProblem:
         self._prior_W = {n: np.linalg.inv(np.linalg.cholesky(self.links[n].cov)) for n in self.free_links}
         self.n_params = 6 + 6 * len(self.free_links) + (1 if estimate_scale else 0)
         # camera ranges (sphere's apparent size) of the reference camera's used rows
-        self.range_rows = np.flatnonzero(self.masks[0]) if use_ranges else np.zeros(0, int)
-        if use_ranges and not cams[0].has_ranges(self.masks[0]):
-            raise ValueError("use_ranges needs a range for every used row of the reference camera")
+        self.range_rows = np.flatnonzero(cams[0].range_mask(self.masks[0])) if use_ranges else np.zeros(0, int)
+        if use_ranges and not len(self.range_rows):
+            raise ValueError("use_ranges needs a range on a used row of the reference camera")
 
     @property
     def n_captures(self) -> int:

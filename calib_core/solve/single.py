@@ -65,7 +65,7 @@ class CameraSolution:
 
 
 def _scale_choice(cd: CameraData, used, prob, res, estimate_scale, robust, range_model):
-    """Range scale of one camera: through its ranges (sphere's apparent size) when every used row
+    """Range scale of one camera: through its ranges (sphere's apparent size) when a used row
     has one (:func:`calib_core.solve.range_scale.range_scale_choice`), else (not observable) held
     at 1. Returns (ScaleChoice, extra covariance)."""
     mode = scale_mode(estimate_scale)
@@ -86,7 +86,7 @@ def solve_camera(cd: CameraData, estimate_scale: bool | str | None = None, robus
                  diameter_rel_sigma: float = 0.0, range_model=None) -> CameraSolution:
     """Calibrate one camera to the sonar from its correspondences (see the package doc).
 
-    Image ranges (when every used row has one) see the range scale: ``range_model`` (a
+    Image ranges (on the used rows that have one) see the range scale: ``range_model`` (a
     :class:`calib_core.solve.outline.RangeModel`) says how, else ``diameter_rel_sigma`` is their
     fixed relative systematic.
 
