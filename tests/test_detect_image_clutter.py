@@ -66,3 +66,14 @@ def test_textures_are_bounded_and_vary():
         assert np.all(f > 0) and np.all(f < 2.5) and f.std() > 0.02
     with pytest.raises(ValueError):
         texture_factor("marble", p, n, 0.2, 0.6, 3)
+
+
+def test_clipped_spot_and_its_hosts():
+    from calib_core.detect.image_highlight import host_candidates, is_clipped_spot
+
+    img = np.full((100, 120, 3), 120, np.uint8)
+    yy, xx = np.mgrid[0:100, 0:120]
+    img[(xx - 60) ** 2 + (yy - 50) ** 2 <= 36] = 255
+    assert is_clipped_spot(img, (60, 50), 6.0) and not is_clipped_spot(img, (30, 50), 6.0)
+    hosts = host_candidates((60, 50), 6.0, img.shape)
+    assert all(h.radius_px > 12 for h in hosts) and any(np.allclose(h.centre_px, (60, 50)) for h in hosts)

@@ -32,6 +32,7 @@ from calib_core.camera import CameraModel
 from calib_core.detect.image_fit import CandidateFit, refine_candidate
 from calib_core.detect.image_fit import clean_rms_px
 from calib_core.detect.image_discs import candidates_by_discs
+from calib_core.detect.image_highlight import host_candidates, is_clipped_spot
 from calib_core.detect.image_hough import hough_circle
 from calib_core.detect.image_score import features, probability
 from calib_core.detect.image_votes import candidates_by_votes
@@ -353,6 +354,8 @@ def _detect_once(image_rgb: np.ndarray, cam: CameraModel, sphere_radius_m: float
             cands = cands + more
             fits += _refine_all(look, more[:DISC_CANDIDATES], False)  # best first, border or not
     det = _verdict(look, fits, cands, method, hint_uv_px is not None)
+    if det.found and is_clipped_spot(img, det.center_uv_px, det.radius_px):
+        det = _host_of_highlight(look, det, method)
     if det.found:
         det.extras["time_ms"] = round(1e3 * (time.perf_counter() - t0), 2)
         det.extras["region_ms"] = round(1e3 * (t_region - t0), 2)
@@ -399,6 +402,26 @@ class _Look:
 
     def refine(self, c: Candidate) -> CandidateFit:
         return refine_candidate(self.img, self.cam, c, self.radius_m, self.a_range, self.bg, self.rng)
+
+
+def _host_of_highlight(look, det: ImageDetection, method: str) -> ImageDetection:
+    """The ball carrying a clipped highlight that was taken for the sphere
+    (:mod:`.image_highlight`); the highlight's own detection when no ball outline is found
+    around it (a small white ball overexposed is a clipped disc too)."""
+    hosts = host_candidates(det.center_uv_px, det.radius_px, look.img.shape)
+    fits = [(c, look.refine(c)) for c in hosts]  # all (the halo's outline must not stop the search)
+    inside = [(c, f) for c, f in fits if f.ok and _mean_radius(f.silhouette_px) > 1.5 * det.radius_px
+              and _inside(det.center_uv_px, f.silhouette_px)]
+    # the highlight's halo (bloom) makes round outlines too: keep the outermost, the ball
+    outer = [(c, f) for c, f in inside if not any(
+        _mean_radius(g.silhouette_px) > 1.3 * _mean_radius(f.silhouette_px) and _inside(f.centre_uv_px, g.silhouette_px)
+        for _, g in inside)]
+    if not outer:
+        return det
+    host = _verdict(look, outer, hosts, method, False)
+    if host.found:
+        host.extras["highlight_uv_px"] = [round(float(x), 2) for x in det.center_uv_px]
+    return host if host.found else det
 
 
 def _in_order(cands, max_candidates):

@@ -13,7 +13,10 @@ attenuated by ``exp(-c t)`` and veiled by the water's own radiance ``B(direction
 (backscatter): ``L = L_obj exp(-c t) + B (1 - exp(-c t))``. Rays that hit nothing see
 ``B``: bright towards the surface and the sun side (backlit), or dark (``dark_water``).
 Then Gaussian blur (optics), Poisson-like + read noise, 8-bit quantisation (JPEG is
-applied by the writer). No shadows, no caustics, no lens vignetting.
+applied by the writer). By default: no shadows, no caustics, no lens vignetting, Lambertian
+balls. An optional :class:`~calib_core.synth.photo.Photo` adds a key light with cast and
+contact shadows, a glossy highlight with bloom, ball markings, vignetting and exposure / white
+balance shifts (model in :mod:`calib_core.synth.photo`; without one the output is unchanged).
 """
 
 from __future__ import annotations
@@ -25,7 +28,8 @@ import cv2
 import numpy as np
 
 from calib_core.camera import CameraModel
-from calib_core.synth.scene import Scene, raycast
+from calib_core.synth import photo as ph
+from calib_core.synth.scene import Scene, Sphere, raycast
 from calib_core.synth.textures import texture_factor
 
 
@@ -110,8 +114,9 @@ def pixel_rays(cam: CameraModel) -> np.ndarray:
     return _pixel_rays_cached(cam.width_px, cam.height_px, tuple(cam.K.ravel()), tuple(cam.dist))
 
 
-def _shade(scene: Scene, water: Water, o_world, d_world, max_range_m):
-    """Radiance (N,3) and hit ids (N,) of world rays."""
+def _shade(scene: Scene, water: Water, o_world, d_world, max_range_m, photo: ph.Photo | None = None):
+    """Radiance (N,3) and hit ids (N,) of world rays (``photo``: optional key light, shadows,
+    gloss and markings)."""
     t, hit, n = raycast(scene, o_world, d_world, acoustic=False, max_range_m=max_range_m)
     B = water.veil(d_world)
     L = B.copy()
@@ -121,13 +126,27 @@ def _shade(scene: Scene, water: Water, o_world, d_world, max_range_m):
         nn = n[m]
         flip = np.einsum("ij,ij->i", nn, d_world[m]) > 0
         nn[flip] *= -1
-        _apply_textures(scene, hit[m], o_world + d_world[m] * t[m, None] if np.ndim(o_world) == 1
-                        else o_world[m] + d_world[m] * t[m, None], nn, alb)
-        lam = water.ambient + water.diffuse * np.clip(nn[:, 2], 0, None)
-        Lo = alb * lam[:, None] * np.asarray(water.light_rgb, float)[None, :]
+        p = o_world + d_world[m] * t[m, None] if np.ndim(o_world) == 1 else o_world[m] + d_world[m] * t[m, None]
+        if photo is None:
+            _apply_textures(scene, hit[m], p, nn, alb)
+            lam = water.ambient + water.diffuse * np.clip(nn[:, 2], 0, None)
+            Lo = alb * lam[:, None] * np.asarray(water.light_rgb, float)[None, :]
+        else:
+            Lo = _shade_photo(scene, water, photo, hit[m], p, nn, d_world[m], alb)
         tr = np.exp(-water.attenuation_per_m * t[m])[:, None]
         L[m] = Lo * tr + B[m] * (1 - tr)
     return L, hit
+
+
+def _shade_photo(scene, water, photo, hit, p, n, d, alb):
+    """Object radiance under :class:`~calib_core.synth.photo.Photo` lighting (markings first,
+    then textures multiply them)."""
+    balls = [i for i in scene.ids_with_tag("target") if isinstance(scene.primitives[i], Sphere)]
+    is_ball = np.isin(hit, balls)
+    if is_ball.any():
+        alb[is_ball] = ph.marking_albedo(photo.ball, p[is_ball], alb[is_ball])
+    _apply_textures(scene, hit, p, n, alb)
+    return ph.shade_lit(photo, alb, p, n, d, is_ball, water.ambient, water.diffuse, water.light_rgb)
 
 
 def _apply_textures(scene: Scene, hit: np.ndarray, p_world: np.ndarray, n_world: np.ndarray,
@@ -145,7 +164,8 @@ def _apply_textures(scene: Scene, hit: np.ndarray, p_world: np.ndarray, n_world:
 
 def render_radiance(scene: Scene, cam: CameraModel, T_world_cam: np.ndarray, water: Water,
                     aa: int = 4, max_range_m: float = 60.0,
-                    fine_tags: tuple = ("target", "chain", "stand", "decoy")) -> tuple[np.ndarray, np.ndarray]:
+                    fine_tags: tuple = ("target", "chain", "stand", "decoy"),
+                    photo: ph.Photo | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Noise-free linear radiance image (H,W,3) float and the hit-id map (H,W).
 
     Edge pixels touching primitives tagged ``fine_tags`` get ``aa x aa`` sub-pixel rays,
@@ -156,7 +176,7 @@ def render_radiance(scene: Scene, cam: CameraModel, T_world_cam: np.ndarray, wat
     H, W = cam.height_px, cam.width_px
     R, c = T_world_cam[:3, :3], T_world_cam[:3, 3]
     d_world = pixel_rays(cam) @ R.T
-    L, hit = _shade(scene, water, c, d_world, max_range_m)
+    L, hit = _shade(scene, water, c, d_world, max_range_m, photo)
     L = L.reshape(H, W, 3)
     hit = hit.reshape(H, W)
     if aa > 1:
@@ -167,11 +187,11 @@ def render_radiance(scene: Scene, cam: CameraModel, T_world_cam: np.ndarray, wat
         key = np.isin(hit, scene.ids_with_tag(*fine_tags)).astype(np.uint8)
         fine = edge & (cv2.dilate(key, k) > 0)
         for mask, n in ((fine, aa), (edge & ~fine, min(aa, 2))):
-            _supersample(scene, cam, R, c, water, max_range_m, mask, n, L)
+            _supersample(scene, cam, R, c, water, max_range_m, mask, n, L, photo)
     return L, hit
 
 
-def _supersample(scene, cam, R, c, water, max_range_m, mask, aa, L):
+def _supersample(scene, cam, R, c, water, max_range_m, mask, aa, L, photo=None):
     """Replace pixels in ``mask`` of radiance image L by the mean of aa x aa sub-pixel rays."""
     vv, uu = np.nonzero(mask)
     if len(uu) == 0:
@@ -185,13 +205,17 @@ def _supersample(scene, cam, R, c, water, max_range_m, mask, aa, L):
     chunk = (400_000 // n) * n  # whole pixels per chunk
     for s in range(0, len(su), chunk):
         rays = camera_rays(cam, np.column_stack([su[s:s + chunk], sv[s:s + chunk]])) @ R.T
-        Ls, _ = _shade(scene, water, c, rays, max_range_m)
+        Ls, _ = _shade(scene, water, c, rays, max_range_m, photo)
         acc[s // n: s // n + len(Ls) // n] = Ls.reshape(-1, n, 3).mean(axis=1)
     L[vv, uu] = acc
 
 
-def finish_image(radiance: np.ndarray, options: RenderOptions, rng: np.random.Generator) -> np.ndarray:
-    """Blur, sensor noise and 8-bit quantisation of a linear radiance image -> RGB uint8."""
+def finish_image(radiance: np.ndarray, options: RenderOptions, rng: np.random.Generator,
+                 photo: ph.Photo | None = None) -> np.ndarray:
+    """Blur, sensor noise and 8-bit quantisation of a linear radiance image -> RGB uint8
+    (``photo``: vignetting, exposure / white balance and bloom first)."""
+    if photo is not None:
+        radiance = ph.bloom(ph.apply_lens_and_exposure(radiance, photo) * 255.0, photo) / 255.0
     img = radiance.astype(np.float32) * (255.0 * options.exposure)
     if options.blur_sigma_px > 0:
         img = cv2.GaussianBlur(img, (0, 0), options.blur_sigma_px)

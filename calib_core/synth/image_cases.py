@@ -9,7 +9,10 @@ Each case is one rendered camera image of a scene kind (no sonar, no session fil
   (contrast falls with distance);
 - "chair": the room with a ball of any colour (grey often: a gym ball) resting on a chair,
   its dark backrest right behind the ball and the seat's edge along its bottom, so that the
-  edges of things touching the sphere run next to its outline (real data set A).
+  edges of things touching the sphere run next to its outline (real data set A);
+- "glossy", "panels", "motion": photographic effects (highlight and bloom, cast and contact
+  shadows, markings, vignetting, exposure and white balance, motion blur) on a gym ball on a
+  chair or the floor, a beach ball, a carried foam ball: see :mod:`calib_core.synth.photo_cases`.
 
 ``render_case(kind, seed, scale)`` returns the image, the camera, the sphere radius, the true
 projection of the sphere centre (raw px), the visible fraction of the outline and, where the
@@ -24,12 +27,13 @@ import numpy as np
 
 from calib_core.camera import CameraModel
 from calib_core.geometry import invert_T, transform_points
-from calib_core.synth import range_scenes, room, world
+from calib_core.synth import photo_cases, range_scenes, room, world
 from calib_core.synth.camera_render import RenderOptions, Water, finish_image, render_radiance
 from calib_core.synth.rig import sample_rig, sample_target_center, silhouette_uv
 from calib_core.synth.scene import Scene
 
-KINDS = ("clutter", "big", "turbid", "chair")
+KINDS = ("clutter", "big", "turbid", "chair", "glossy", "panels", "motion")
+PHOTO_KINDS = {"glossy": photo_cases.glossy, "panels": photo_cases.panels, "motion": photo_cases.motion}
 
 
 @dataclass
@@ -59,6 +63,9 @@ def render_case(kind: str, seed: int, scale: float = 0.5, with_ball: bool = True
         return _turbid(rng, rig, cam, T_wc, opts, seed, with_ball)
     if kind == "chair":
         return _chair(rng, rig, cam, T_wc, opts, seed, with_ball)
+    if kind in PHOTO_KINDS:
+        L, c, radius, photo, label = PHOTO_KINDS[kind](rng, rig, cam, T_wc, scale, with_ball)
+        return _finish(L, None, cam, T_wc, c, radius, opts, rng, f"{label}/s{seed}", photo)
     radius = float(rng.uniform(0.1, 0.3))
     floor_z = float(min(T_wc[2, 3], 0.0) - rng.uniform(0.6, 1.3))
     if kind == "big":
@@ -126,10 +133,10 @@ def _turbid(rng, rig, cam, T_wc, opts, seed, with_ball=True) -> ImageCase:
     return _finish(L, Lb, cam, T_wc, c, radius, opts, rng, f"turbid/s{seed}")
 
 
-def _finish(L, L_bg, cam, T_wc, c, radius, opts, rng, label) -> ImageCase:
+def _finish(L, L_bg, cam, T_wc, c, radius, opts, rng, label, photo=None) -> ImageCase:
     C = transform_points(invert_T(T_wc), c[None])[0]
     sil = silhouette_uv(cam, C, radius)
     r_px = 0.5 * float(np.max(sil.max(axis=0) - sil.min(axis=0)))
-    img = finish_image(L, opts, rng)
+    img = finish_image(L, opts, rng, photo)
     bg = None if L_bg is None else finish_image(L_bg, opts, rng).astype(np.float32)
     return ImageCase(img, cam, radius, cam.project(C[None])[0], r_px, bg, label, float(np.linalg.norm(C)))
