@@ -186,13 +186,30 @@ def refine_candidate(image: np.ndarray, cam: CameraModel, cand: Candidate, spher
         return CandidateFit(False, "no round outline")
     res, outside_bad = _fitted(cam, sig, p2, R, sphere_radius_m)
     _judge(cam, res, R, outside_bad, sig.diff is not None)
-    if res.ok and fit1.reading == "several" and sig.diff is None \
-            and _inside_colour_agreement(sig, res.silhouette_px, R) < SEVERAL_MIN_INSIDE_AGREEMENT:
-        # a circle picked from several edges per ray can run through unrelated things (a block's
-        # corner, mortar lines): a sphere's inside has one hue all along its outline (shading
-        # changes only the brightness)
+    if res.ok and fit1.reading == "several" and not _several_held(sig, res, R, outside_bad):
         res.ok, res.credible, res.reason = False, False, "no round outline"
     return res
+
+
+def _several_held(sig: _Signal, res: CandidateFit, R: float, outside_bad: float) -> bool:
+    """A fit that came through the several-edges reading, held to a higher standard: that
+    reading chose its edge among several per ray, so a round outline is more easily had by
+    chance (in a ball-free scene it found a round patch of one uniform thing 3 times in 240).
+    It must meet the tight refit's standard (the other fit that is searched for rather than
+    refined: TIGHT_MIN_SUPPORT, TIGHT_RMS_FRACTION of the clean limit), the credible outside
+    limit (0.2) unless it is the very clean, mostly visible outline _judge lets stand in
+    clutter, and without a background one hue inside all along the outline."""
+    fit = res.fit
+    if res.support < TIGHT_MIN_SUPPORT or fit.sigma_px > TIGHT_RMS_FRACTION * clean_rms_px(R):
+        return False
+    very_clean = res.support >= 0.7 and fit.sigma_px <= 0.35 * clean_rms_px(R)
+    if outside_bad > 0.2 and not very_clean:
+        return False
+    # a circle picked from several edges per ray can run through unrelated things (a block's
+    # corner, mortar lines): a sphere's inside has one hue all along its outline (shading
+    # changes only the brightness)
+    return sig.diff is not None or \
+        _inside_colour_agreement(sig, res.silhouette_px, R) >= SEVERAL_MIN_INSIDE_AGREEMENT
 
 
 def _first_pass(cam, sig: _Signal, cand: Candidate, R: float, band, a_range_rad, rng) -> ConeFit | str:
