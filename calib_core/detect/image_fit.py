@@ -17,8 +17,8 @@ import numpy as np
 from calib_core.camera import CameraModel
 from calib_core.detect.image_cone import (ConeFit, centre_uv_and_cov, fit_cone, normalize_near,
                                           silhouette_uv, silhouette_xy)
-from calib_core.detect.image_edges import (edge_peaks, gradient_magnitude, outward_normals, pick_edges,
-                                           ray_directions, sample_profiles, smooth_roi)
+from calib_core.detect.image_edges import (edge_peaks, edge_widths, gradient_magnitude, outward_normals,
+                                           pick_edges, ray_directions, sample_profiles, smooth_roi)
 from calib_core.detect.image_region import Candidate
 
 SMOOTH_SIGMA_PX = 1.0
@@ -45,6 +45,30 @@ SMALL_RADIUS_PX = 15.0
 def clean_rms_px(radius_px: float) -> float:
     """Largest edge RMS (px) of a round outline of this apparent radius."""
     return max(CLEAN_RMS_FRAC * radius_px, CLEAN_RMS_PX * min(1.0, radius_px / SMALL_RADIUS_PX))
+
+
+# A blurred outline (a ball moving during the exposure, out of focus) has a wide edge whose
+# gradient peak is a plateau rather than a point: the sub-pixel peak lands anywhere on it, so
+# the edge points scatter by the plateau width / sqrt(12) (a uniform spread) on top of what a
+# sharp edge gives. SHARP_EDGE_WIDTH_PX is the full width at half maximum of the gradient of a
+# sharp photograph's edge after the SMOOTH_SIGMA_PX smoothing: 2.355 sqrt(1.0^2 + 1.4^2) px,
+# i.e. an optics and JPEG blur of 1.4 px (the renders' sharp edges measure 2.7-2.9 px, so
+# they get no allowance); only the width beyond it widens the roundness limit.
+SHARP_EDGE_WIDTH_PX = 4.0
+
+
+def outline_rms_limit_px(radius_px: float, edge_width_px: float) -> float:
+    """Largest edge RMS (px) of a round outline of this apparent radius whose edges have this
+    median width (FWHM of the gradient, px): :func:`clean_rms_px` and, in quadrature, the
+    scatter of a peak's position over the width beyond a sharp edge's. Not below
+    SMALL_RADIUS_PX (a small blob with a soft edge is as likely a smudge or a shadow as a
+    blurred ball), and the width counts up to half the radius (a ball blurred over more than
+    that is a streak, not an outline)."""
+    if radius_px < SMALL_RADIUS_PX or not np.isfinite(edge_width_px):
+        return clean_rms_px(radius_px)
+    w = min(float(edge_width_px), 0.5 * radius_px)
+    excess2 = max(0.0, w ** 2 - SHARP_EDGE_WIDTH_PX ** 2)
+    return float(np.sqrt(clean_rms_px(radius_px) ** 2 + excess2 / 12.0))
 
 
 # Without a background image the "looks like the surroundings just outside" test compares the
@@ -260,7 +284,7 @@ def _pass1_usable(fit1: ConeFit | None, seg_in: np.ndarray, R: float) -> bool:
 def _fitted(cam, sig: _Signal, p2, R: float, sphere_radius_m: float) -> tuple[CandidateFit, float]:
     """The pass-2 fit as a candidate fit (centre, covariance, outline, support, score,
     contrast, range; extras), not yet judged; and the outline's outside mismatch."""
-    fit, ok2, s2, k2 = p2
+    fit, ok2, s2, k2, widths = p2
     centre, cov = centre_uv_and_cov(cam, fit)
     # systematic outline deviations (ragged open-mesh envelope, shading, JPEG) do not average
     # out over the edge points; a floor of SYS_FRACTION x the edge RMS per axis matched the
@@ -270,12 +294,16 @@ def _fitted(cam, sig: _Signal, p2, R: float, sphere_radius_m: float) -> tuple[Ca
     support = float(fit.inliers.sum()) / k2
     # peak gradient of a step c smoothed by a Gaussian is c / (sigma sqrt(2 pi)); optics blur ignored
     contrast = float(np.median(s2[ok2][fit.inliers])) * SMOOTH_SIGMA_PX * np.sqrt(2 * np.pi)
-    score = float(np.clip(support, 0, 1) * np.exp(-max(0.0, fit.sigma_px - 0.3) / 0.7))
+    width = float(np.median(widths[fit.inliers])) if fit.inliers.any() else float("nan")
+    # raggedness relative to what an edge of this width gives (a sharp edge: unchanged)
+    sigma_rel = fit.sigma_px * clean_rms_px(R) / outline_rms_limit_px(R, width)
+    score = float(np.clip(support, 0, 1) * np.exp(-max(0.0, sigma_rel - 0.3) / 0.7))
     res = CandidateFit(True, "", fit, centre, cov, sil_f, support, score, contrast,
                        float(sphere_radius_m / np.sin(fit.a_rad)))
     res.extras = {"edge_points": int(ok2.sum()), "inliers": int(fit.inliers.sum()),
                   "edge_rms_px": round(float(fit.sigma_px), 4), "support": round(support, 4),
-                  "edge_contrast": round(float(contrast), 2)}
+                  "edge_contrast": round(float(contrast), 2),
+                  "edge_width_px": round(width, 3)}
     visible = cam.in_image(sil_f, margin_px=0.05 * R + 8)
     outside_bad = _outside_mismatch(sig, sil_f[visible], outward_normals(sil_f, sil_f.mean(axis=0))[visible], R) \
         if visible.sum() >= 8 else 1.0
@@ -291,7 +319,7 @@ def _judge(cam, res: CandidateFit, R: float, outside_bad: float, with_background
     # a clean outline, maybe cut by the border: things inside it are its texture
     # judged at the fitted size (the candidate's coarse size can be well off)
     r_fit = float(np.mean(np.linalg.norm(sil_f - sil_f.mean(axis=0), axis=1)))
-    clean = fit.sigma_px <= clean_rms_px(min(R, r_fit))
+    clean = fit.sigma_px <= outline_rms_limit_px(min(R, r_fit), res.extras.get("edge_width_px", np.nan))
     res.credible = support >= 0.45 and clean and outside_bad <= 0.2
     if not cam.in_image(sil_f, margin_px=1.0).all():
         res.ok = False
@@ -348,7 +376,7 @@ def _pass2(cam, sig, fit1: ConeFit, R: float, a_range_rad, rng):
         xy2 = normalize_near(cam, uv2, sil_xy[ok2], iterations=3)
         fit = _pass2_fit(cam, xy2, fit1, R, a_range_rad, rng, k2, perim)
         if fit is not None and (best is None or _quality(fit) > _quality(best[0])):
-            best = (fit, ok2, s2, k2)
+            best = (fit, ok2, s2, k2, edge_widths(t2, g2, te)[ok2])
     return best
 
 
