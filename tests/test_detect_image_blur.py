@@ -35,9 +35,9 @@ def test_roundness_limit_grows_with_the_width_beyond_a_sharp_edge_only():
     w = 10.0
     assert outline_rms_limit_px(40.0, w) == pytest.approx(
         np.sqrt(clean_rms_px(40.0) ** 2 + (w ** 2 - SHARP_EDGE_WIDTH_PX ** 2) / 12.0))
-    # no allowance for a small blob, and the width counts up to half the radius
+    # no allowance for a small blob, and the width counts up to a quarter of the radius
     assert outline_rms_limit_px(12.0, 9.0) == clean_rms_px(12.0)
-    assert outline_rms_limit_px(20.0, 30.0) == outline_rms_limit_px(20.0, 10.0)
+    assert outline_rms_limit_px(40.0, 30.0) == outline_rms_limit_px(40.0, 10.0)
 
 
 @pytest.mark.parametrize("seed", [1004, 1011])

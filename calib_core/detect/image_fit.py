@@ -55,6 +55,7 @@ def clean_rms_px(radius_px: float) -> float:
 # i.e. an optics and JPEG blur of 1.4 px (the renders' sharp edges measure 2.7-2.9 px, so
 # they get no allowance); only the width beyond it widens the roundness limit.
 SHARP_EDGE_WIDTH_PX = 4.0
+BLUR_MAX_RADIUS_FRACTION = 0.25
 
 
 def outline_rms_limit_px(radius_px: float, edge_width_px: float) -> float:
@@ -62,11 +63,11 @@ def outline_rms_limit_px(radius_px: float, edge_width_px: float) -> float:
     median width (FWHM of the gradient, px): :func:`clean_rms_px` and, in quadrature, the
     scatter of a peak's position over the width beyond a sharp edge's. Not below
     SMALL_RADIUS_PX (a small blob with a soft edge is as likely a smudge or a shadow as a
-    blurred ball), and the width counts up to half the radius (a ball blurred over more than
-    that is a streak, not an outline)."""
+    blurred ball), and the width counts up to BLUR_MAX_RADIUS_FRACTION of the radius (a ball
+    blurred over more than that is a streak, not an outline)."""
     if radius_px < SMALL_RADIUS_PX or not np.isfinite(edge_width_px):
         return clean_rms_px(radius_px)
-    w = min(float(edge_width_px), 0.5 * radius_px)
+    w = min(float(edge_width_px), BLUR_MAX_RADIUS_FRACTION * radius_px)
     excess2 = max(0.0, w ** 2 - SHARP_EDGE_WIDTH_PX ** 2)
     return float(np.sqrt(clean_rms_px(radius_px) ** 2 + excess2 / 12.0))
 
@@ -296,7 +297,9 @@ def _fitted(cam, sig: _Signal, p2, R: float, sphere_radius_m: float) -> tuple[Ca
     contrast = float(np.median(s2[ok2][fit.inliers])) * SMOOTH_SIGMA_PX * np.sqrt(2 * np.pi)
     width = float(np.median(widths[fit.inliers])) if fit.inliers.any() else float("nan")
     # raggedness relative to what an edge of this width gives (a sharp edge: unchanged)
-    sigma_rel = fit.sigma_px * clean_rms_px(R) / outline_rms_limit_px(R, width)
+    # (the allowance as in _judge: only for a mostly visible outline)
+    sigma_rel = fit.sigma_px * clean_rms_px(R) / outline_rms_limit_px(R, width if support >= TIGHT_MIN_SUPPORT
+                                                                     else np.nan)
     score = float(np.clip(support, 0, 1) * np.exp(-max(0.0, sigma_rel - 0.3) / 0.7))
     res = CandidateFit(True, "", fit, centre, cov, sil_f, support, score, contrast,
                        float(sphere_radius_m / np.sin(fit.a_rad)))
@@ -319,7 +322,11 @@ def _judge(cam, res: CandidateFit, R: float, outside_bad: float, with_background
     # a clean outline, maybe cut by the border: things inside it are its texture
     # judged at the fitted size (the candidate's coarse size can be well off)
     r_fit = float(np.mean(np.linalg.norm(sil_f - sil_f.mean(axis=0), axis=1)))
-    clean = fit.sigma_px <= outline_rms_limit_px(min(R, r_fit), res.extras.get("edge_width_px", np.nan))
+    # the wider limit of a blurred outline is a looser test: like the tight refit (the other
+    # outline searched for rather than refined) it needs TIGHT_MIN_SUPPORT of the outline (a
+    # soft-edged part-circle in texture is easily had)
+    width = res.extras.get("edge_width_px", np.nan) if support >= TIGHT_MIN_SUPPORT else np.nan
+    clean = fit.sigma_px <= outline_rms_limit_px(min(R, r_fit), width)
     res.credible = support >= 0.45 and clean and outside_bad <= 0.2
     if not cam.in_image(sil_f, margin_px=1.0).all():
         res.ok = False
