@@ -298,9 +298,13 @@ def _fitted(cam, sig: _Signal, p2, R: float, sphere_radius_m: float) -> tuple[Ca
     width = float(np.median(widths[fit.inliers])) if fit.inliers.any() else float("nan")
     # raggedness relative to what an edge of this width gives (a sharp edge: unchanged)
     # (the allowance as in _judge: only for a mostly visible outline)
-    sigma_rel = fit.sigma_px * clean_rms_px(R) / outline_rms_limit_px(R, width if support >= TIGHT_MIN_SUPPORT
-                                                                     else np.nan)
+    limit = outline_rms_limit_px(R, width if support >= TIGHT_MIN_SUPPORT else np.nan)
+    sigma_rel = fit.sigma_px * clean_rms_px(R) / limit
     score = float(np.clip(support, 0, 1) * np.exp(-max(0.0, sigma_rel - 0.3) / 0.7))
+    # a blurred outline's peak position on the plateau is the same smear for neighbouring
+    # normals: it does not average out over the outline, a systematic floor of its own
+    # (the allowance of outline_rms_limit_px, zero for a sharp edge)
+    cov = cov + (limit ** 2 - clean_rms_px(R) ** 2) * np.eye(2)
     res = CandidateFit(True, "", fit, centre, cov, sil_f, support, score, contrast,
                        float(sphere_radius_m / np.sin(fit.a_rad)))
     res.extras = {"edge_points": int(ok2.sum()), "inliers": int(fit.inliers.sum()),
