@@ -41,7 +41,7 @@ from calib_core.session import load_session  # noqa: E402
 from calib_core.synth.generate import generate_session  # noqa: E402
 from calib_core.synth.ground_truth import load_ground_truth  # noqa: E402
 
-PRESETS = ("lidar-chair", "rgbd-stick", "rgbd-table", "clutter", "seabed-slab")
+PRESETS = ("lidar-chair", "rgbd-stick", "rgbd-table", "clutter", "seabed-slab", "gym", "carried-photo")
 TOL_PX = 3.0
 CONFIDENT = 0.5
 
