@@ -81,6 +81,8 @@ def run_session(root: Path, preset: str, seed: int, st: dict, listing: bool) -> 
             name = f"{preset} s{seed} {cap.id} {cam}"
             if det.found:
                 st["scored"].append((det.score, verdict == "right"))
+            if verdict == "right":
+                st["right_off"].append(float(np.hypot(*(det.center_uv_px - np.asarray(truth["center_uv_px"], float)))))
             if verdict == "wrong":
                 uv = truth.get("center_uv_px")
                 off = np.hypot(*(det.center_uv_px - uv)) if uv is not None else float("nan")
@@ -94,7 +96,7 @@ def run_session(root: Path, preset: str, seed: int, st: dict, listing: bool) -> 
 
 
 def new_stats() -> dict:
-    return {"right": 0, "wrong": 0, "missed": 0, "ok-absent": 0, "visible": 0, "ms": [], "scored": [],
+    return {"right": 0, "wrong": 0, "missed": 0, "ok-absent": 0, "visible": 0, "ms": [], "scored": [], "right_off": [],
             "wrong_list": [], "miss_reasons": Counter(), "miss_list": []}
 
 
@@ -102,20 +104,24 @@ def print_table(rows: dict, seeds, scale: float) -> None:
     print(f"\nImage detection alone on generated sessions, seeds {seeds[0]}-{seeds[-1]}, scale {scale:g} "
           f"(right = within {TOL_PX:.0f} px of the truth)")
     print("| preset | images | whole ball visible | right | wrong | of them score >= 0.5 | missed (visible) "
-          "| misses (reason: count) | ms/image (median) |")
-    print("|---|---|---|---|---|---|---|---|---|")
+          "| misses (reason: count) | ms/image (median) | centre RMS of right (px) |")
+    print("|---|---|---|---|---|---|---|---|---|---|")
     for preset, st in rows.items():
         n = st["right"] + st["wrong"] + st["missed"] + st["ok-absent"]
         conf = sum(1 for s, _, _ in st["wrong_list"] if s >= CONFIDENT)
         miss = ", ".join(f"{k}: {v}" for k, v in st["miss_reasons"].most_common()) or "-"
         print(f"| {preset} | {n} | {st['visible']} | {st['right']} | {st['wrong']} | {conf} | {st['missed']} "
-              f"| {miss} | {np.median(st['ms']):.1f} |")
+              f"| {miss} | {np.median(st['ms']):.1f} | {_rms(st['right_off'])} |")
     wrong = sorted((w for st in rows.values() for w in st["wrong_list"]), reverse=True)
     print("\nWrong detections (score, image, px off), most confident first:")
     for s, name, off in wrong[:30]:
         print(f"  {s:.2f}  {name}  {off:.0f} px{'   <- confident' if s >= CONFIDENT else ''}")
     if not wrong:
         print("  none")
+
+
+def _rms(offsets: list) -> str:
+    return f"{np.sqrt(np.mean(np.square(offsets))):.3f}" if offsets else "-"
 
 
 def parse_seeds(text: str) -> list[int]:

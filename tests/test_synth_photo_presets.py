@@ -20,7 +20,7 @@ from calib_core.synth.presets import PRESETS, for_seed
 from calib_core.synth.range_scenes import room, solid_ball
 from calib_core.synth.scene import Scene
 
-SMALL = dict(scale=0.15, n_captures=3, pan_step_deg=3.0)
+SMALL = dict(scale=0.15, n_captures=2, pan_step_deg=3.0)
 W, H = 200, 150
 
 
