@@ -41,6 +41,9 @@ def test_photo_presets_are_deterministic_valid_sessions(tmp_path, name):
     assert _digest(c) != _digest(a)
     gt = load_ground_truth(a)
     assert gt["preset"] == name
+    assert all("motion_px" in c for c in gt["captures"].values())  # None when still
+    if name == "gym":
+        assert all(c["motion_px"] is None for c in gt["captures"].values())
     sess = load_session(a)
     assert all(spec.background_path is None for spec in sess.cameras.values())
     assert len(sess.cameras) == (2 if name == "gym" else 1)

@@ -95,6 +95,8 @@ def _write_captures(out: Path, L: Layout, pl: Placement, tick, look=None) -> tup
         manifest_caps.append({"id": cid, "cloud": f"clouds/{cid}{P.cloud_format}", "images": images})
         gt_caps[cid] = _capture_truth(rig, img_scene, L.radius, pl.centers[k] if is_target else None,
                                       pl.image_centers[k] if is_target else None)
+        if light is not None:  # a photographic preset: the ball's blur during the exposure (px), if any
+            gt_caps[cid]["motion_px"] = None if light[1].motion_px is None else to_list(light[1].motion_px)
         if k == pl.drift_idx:  # the drift preset: frames recorded while the sphere drifts
             gt_caps[cid]["drift"] = write_drift_frames(
                 out, cid, rig, partial(_drift_scene, L, k, extra),
