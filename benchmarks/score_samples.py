@@ -33,21 +33,48 @@ sys.path.insert(0, str(ROOT))
 
 from calib_core.detect import image as image_det  # noqa: E402
 from calib_core.detect.image import detect_sphere_in_image  # noqa: E402
+from calib_core.detect.outline_cues import CUE_NAMES, outline_cues  # noqa: E402
 
 TOL_PX = 3.0
 FIELDS = ("outline_coverage", "edge_rms_px", "outside_mismatch", "edge_contrast", "runner_up_ratio",
           "radius_px", "fit_quality", "hinted", "right", "score_now")
+# score round 3: more of the extras and the image cues around the outline (outline_cues.py);
+# records collected before have NaN there
+MORE_FIELDS = ("support", "edge_points", "inliers", "refined", "centre_err_px") + CUE_NAMES
+ALL_FIELDS = FIELDS + MORE_FIELDS
 MAX_HARD = 5  # hinted looks per image at other round things
 
 
-def record(det, truth_uv, hinted: bool) -> list[float]:
-    """One record (FIELDS order) of a found detection."""
+def record(det, truth_uv, hinted: bool, img=None) -> list[float]:
+    """One record (FIELDS order; with ``img``, ALL_FIELDS) of a found detection."""
     e = det.extras
-    right = truth_uv is not None and float(np.hypot(*(det.center_uv_px - truth_uv))) <= TOL_PX
-    return [float(e.get("outline_coverage", 0.0)), float(e.get("edge_rms_px", 0.0)),
+    err = float(np.hypot(*(det.center_uv_px - truth_uv))) if truth_uv is not None else np.inf
+    right = err <= TOL_PX
+    base = [float(e.get("outline_coverage", 0.0)), float(e.get("edge_rms_px", 0.0)),
             float(e.get("outside_mismatch", 0.0)), float(e.get("edge_contrast", 0.0)),
             float(e.get("runner_up_ratio", 0.0)), float(det.radius_px), float(e.get("fit_quality", 0.0)),
             float(hinted), float(right), float(det.score)]
+    if img is None:
+        return base
+    cues = outline_cues(img, det.center_uv_px, det.radius_px)
+    return base + [float(e.get(k, np.nan)) for k in ("support", "edge_points", "inliers", "refined")] + [
+        min(err, 1e6)] + [cues[k] for k in CUE_NAMES]
+
+
+def photo_records(kinds, seeds, scale: float, case_of, log=print) -> np.ndarray:
+    """ALL_FIELDS records of the free detection on the photographic kinds (glossy, panels,
+    motion), with and without the ball (a detection on a ball-free image is wrong);
+    ``case_of(kind, seed, scale, with_ball)`` renders or loads a case."""
+    rows = []
+    for kind in kinds:
+        for seed in seeds:
+            for with_ball in (True, False):
+                case = case_of(kind, seed, scale, with_ball)
+                det = detect_sphere_in_image(case.image, case.cam, case.radius_m, background=case.background)
+                if det.found:
+                    rows.append(record(det, case.true_uv_px if with_ball else None, False, case.image))
+        log(f"  photo {kind} s{seeds[0]}-{seeds[-1]}: {len(rows)} records")
+    return np.array(rows, float).reshape(-1, len(ALL_FIELDS))
 
 
 def _coarse_places(img, cam, radius_m, background):
