@@ -50,6 +50,9 @@ ROUND2 = (-14.700, 0.911, 5.240)  # score round 2's CALIBRATION (no quality term
 PHOTO_KINDS = ("glossy", "panels", "motion")
 PHOTO_TRAIN, PHOTO_TEST = range(1000, 1040), range(1040, 1080)
 PHOTO_CACHE = Path("/tmp/real_cache")
+CASE_CACHE = Path("/tmp/img6/cache")  # the old kinds' held-out renders (bench_image_presets.py --cache)
+# the kinds before the photographic ones (the old caches hold these only; KINDS now has all)
+OLD_KINDS = tuple(k for k in KINDS if k not in PHOTO_KINDS)
 KINECTNET = (ROOT.parent.parent / "shared" / "data" / "kinectnet-dev", Path("/work/shared/data/kinectnet-dev"))
 
 
@@ -59,10 +62,11 @@ def sources(quick: bool) -> dict:
     s_tr, s_te = (range(1, 2), range(41, 45)) if quick else (range(1, 4), range(41, 61))
     sess = Path("/tmp/sonarcal-image-sessions")
     out = {
-        "cases-train": (lambda: ss.case_records(KINDS, range(n_tr), 0.4, True), True),
+        "cases-train": (lambda: ss.case_records(OLD_KINDS, range(n_tr), 0.4, True), True),
         "sessions-train": (lambda: ss.session_records(SESSION_PRESETS, s_tr, 0.5, sess, True), True),
         "decoys-train": (lambda: ss.session_records(DECOY_PRESETS, s_tr, 0.5, sess, True), False),
-        "cases-test": (lambda: ss.case_records(KINDS, range(1000, 1000 + n_te), 0.5, False), False),
+        "cases-test": (lambda: ss.case_records(OLD_KINDS, range(1000, 1000 + n_te), 0.5, False,
+                                               case_of=_cached_case(CASE_CACHE)), False),
     }
     q = max(1, len(s_te) // 4)  # four cache files: the first ones are usable while the others run
     for tag, k in (("a", 0), ("b", 1), ("c", 2), ("d", 3)):
@@ -78,11 +82,18 @@ def sources(quick: bool) -> dict:
     return out
 
 
-def _photo_case(kind, seed, scale, with_ball):
+def _cached_case(cache: Path):
+    """case_of(kind, seed, scale, with_ball) through bench_image_presets' render cache ``cache``
+    (when the folder exists; rendering otherwise)."""
     import bench_image_presets as bip
 
-    bip.CACHE = PHOTO_CACHE if PHOTO_CACHE.is_dir() else None
-    return bip._case(kind, seed, scale, with_ball=with_ball)
+    def case_of(kind, seed, scale, with_ball):
+        bip.CACHE = cache if cache.is_dir() else None
+        return bip._case(kind, seed, scale, with_ball=with_ball)
+    return case_of
+
+
+_photo_case = _cached_case(PHOTO_CACHE)
 
 
 def _padded(R: np.ndarray) -> np.ndarray:

@@ -33,7 +33,7 @@ sys.path.insert(0, str(ROOT))
 
 from calib_core.detect import image as image_det  # noqa: E402
 from calib_core.detect.image import detect_sphere_in_image  # noqa: E402
-from calib_core.detect.outline_cues import CUE_NAMES, outline_cues  # noqa: E402
+from outline_cues import CUE_NAMES, outline_cues  # noqa: E402
 
 TOL_PX = 3.0
 FIELDS = ("outline_coverage", "edge_rms_px", "outside_mismatch", "edge_contrast", "runner_up_ratio",
@@ -93,7 +93,7 @@ def image_records(img, cam, radius_m, background, truth_uv, truth_r, hard: bool)
     out = []
     det = detect_sphere_in_image(img, cam, radius_m, background=background)
     if det.found:
-        out.append(record(det, truth_uv, False))
+        out.append(record(det, truth_uv, False, img))
     if not hard:
         return out
     bg = image_det.prepare_background(background) if background is not None else None
@@ -109,23 +109,26 @@ def image_records(img, cam, radius_m, background, truth_uv, truth_r, hard: bool)
     for c, r in hints:
         d = detect_sphere_in_image(img, cam, radius_m, background=background, hint_uv_px=c, hint_radius_px=r)
         if d.found:
-            out.append(record(d, truth_uv, True))
+            out.append(record(d, truth_uv, True, img))
     return out
 
 
-def case_records(kinds, seeds, scale: float, hard: bool, log=print) -> np.ndarray:
+def case_records(kinds, seeds, scale: float, hard: bool, log=print, case_of=None) -> np.ndarray:
+    """Records of the old kinds' cases; ``case_of(kind, seed, scale, with_ball)`` renders or
+    loads a case (default: render_case)."""
     from calib_core.synth.image_cases import render_case
 
+    case_of = case_of or (lambda k, s, sc, wb: render_case(k, s, sc, with_ball=wb))
     rows = []
     for kind in kinds:
         for seed in seeds:
             for with_ball in (True, False):
-                case = render_case(kind, seed, scale, with_ball=with_ball)
+                case = case_of(kind, seed, scale, with_ball)
                 uv = case.true_uv_px if with_ball else None
                 for bg in ((case.background, None) if case.background is not None else (None,)):
                     rows += image_records(case.image, case.cam, case.radius_m, bg, uv, case.radius_px, hard)
             log(f"  cases {kind} s{seed}: {len(rows)} records")
-    return np.array(rows, float).reshape(-1, len(FIELDS))
+    return np.array(rows, float).reshape(-1, len(ALL_FIELDS))
 
 
 def session_records(presets, seeds, scale: float, cache: Path, hard: bool, log=print) -> np.ndarray:
@@ -155,7 +158,7 @@ def session_records(presets, seeds, scale: float, cache: Path, hard: bool, log=p
                     rows += image_records(img, model, data.session.sphere_radius_m, data.background(cam), uv,
                                           r, hard and uv is not None and r > 0)
             log(f"  sessions {preset} s{seed}: {len(rows)} records")
-    return np.array(rows, float).reshape(-1, len(FIELDS))
+    return np.array(rows, float).reshape(-1, len(ALL_FIELDS))
 
 
 def kinectnet_records(session_dir: Path, reference: Path) -> np.ndarray:
@@ -175,4 +178,4 @@ def kinectnet_records(session_dir: Path, reference: Path) -> np.ndarray:
             uv = np.asarray(r["centre_uv_px"], float) if r.get("centre_uv_px") and r["flag"] == "whole" else None
             rows += image_records(load_image(cap.image_paths[cam]), model, ses.sphere_radius_m, None, uv, 0.0,
                                   False)
-    return np.array(rows, float).reshape(-1, len(FIELDS))
+    return np.array(rows, float).reshape(-1, len(ALL_FIELDS))

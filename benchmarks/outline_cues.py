@@ -1,4 +1,5 @@
-"""Image cues of an accepted round outline that its fit does not see (score round 3, issue 11).
+"""Image cues of an accepted round outline that its fit does not see (score round 3, issue 11;
+measured by score_samples.py, not used by the detector: see BENCHMARKS.md "Score round 3").
 
 The outline fit reads edge points; these cues read the image around the fitted circle, on
 rays at ``N_RAYS`` angles: the colour just inside (0.80-0.92 R) and just outside (1.08-1.20 R)
