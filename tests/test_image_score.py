@@ -68,9 +68,9 @@ def test_quality_term_lowers_ragged_outlines_up_to_the_cap():
     """The photographic kinds' wrong outlines (fit quality 0.26-0.63) score far lower than the same
     outline at the cap; past the cap the quality adds nothing."""
     ex = {"outline_coverage": 0.6, "edge_rms_px": 0.6, "outside_mismatch": 0.1, "edge_contrast": 60.0}
-    p = {q: probability(features({**ex, "fit_quality": q}, 30.0, 0.7), 0.0) for q in (0.3, 0.5, 0.65, 0.95)}
-    assert p[0.3] < 0.1 < p[0.5] < p[0.65]
-    assert p[0.65] == p[0.95]
+    p = {q: probability(features({**ex, "fit_quality": q}, 30.0, 0.7), 0.0) for q in (0.3, 0.5, 0.7, 0.95)}
+    assert p[0.3] < 0.1 < p[0.5] < p[0.7]
+    assert p[0.7] == p[0.95]
 
 
 def test_size_term_raises_the_score_of_larger_outlines_up_to_the_cap():
