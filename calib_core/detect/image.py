@@ -487,6 +487,12 @@ def _verdict(look, fits, cands, method, hinted: bool) -> ImageDetection:
             [round(float(f.centre_uv_px[0]), 2), round(float(f.centre_uv_px[1]), 2), round(f.range_m, 4)]
             for _, f in good[:3]])
     f = good[0][1]
+    rival = _disputed_by(fits, f)
+    if rival is not None and not hinted:
+        d = float(np.hypot(*(rival.centre_uv_px - f.centre_uv_px)))
+        u, v = f.centre_uv_px
+        return _not_found(f"{DISPUTED} by {d:.1f} px at ({u:.0f}, {v:.0f})", method,
+                          candidates=len(cands), rejected=_rejected(fits))
     if not (0.8 * look.d_min <= f.range_m <= 1.25 * look.d_max):
         return _not_found("apparent size outside the plausible range", method)
     runner_up = _evidence(good[1][1]) / max(_evidence(f), 1e-9) if len(good) > 1 else 0.0
@@ -498,6 +504,34 @@ def _verdict(look, fits, cands, method, hinted: bool) -> ImageDetection:
         det.center_uv_px, det.radius_px, det.cov_uv_px2 = h[0], h[1], h[2]
         det.ellipse_px = ((float(h[0][0]), float(h[0][1])), (2 * h[1], 2 * h[1]), 0.0)
     return det
+
+
+DISPUTED = "two fits of one outline disagree"
+# centres of two fits of one outline this many of the accepted fit's sigmas apart (and at least
+# DISPUTE_MIN_PX) cannot both be right
+DISPUTE_SIGMAS = 3.0
+DISPUTE_MIN_PX = 1.5
+
+
+def _disputed_by(fits, f: CandidateFit) -> CandidateFit | None:
+    """A refused fit of the same outline (centre within a quarter radius, size within 15 %)
+    that explains more of it (higher support and score) than the accepted, not credible fit
+    ``f``, with a centre too far from ``f``'s for both to be right: the outline has two
+    readings (a backrest's or a seat's edge taken for the ball's on part of it) and the
+    accepted one is the weaker. A credible ``f`` (clean, mostly visible, the outside unlike
+    the sphere) is not questioned."""
+    if f.credible:
+        return None
+    r_f = _mean_radius(f.silhouette_px)
+    tol = max(DISPUTE_MIN_PX, DISPUTE_SIGMAS * float(np.sqrt(max(np.linalg.eigvalsh(f.cov_uv_px2)[-1], 0.0))))
+    for _, g in fits:
+        if g.ok or g.fit is None or g.silhouette_px is None or g is f:
+            continue
+        d = float(np.hypot(*(g.centre_uv_px - f.centre_uv_px)))
+        if (tol < d < 0.25 * r_f and abs(_mean_radius(g.silhouette_px) - r_f) < 0.15 * r_f
+                and g.support > f.support and g.score > f.score):
+            return g
+    return None
 
 
 def _detection(f: CandidateFit, sphere_radius_m: float, method: str, n_cands: int,

@@ -44,6 +44,7 @@ class ConeFit:
     sigma_px: float
     cov_params: np.ndarray
     basis: np.ndarray
+    reading: str = ""  # which edges it was fitted to, when a caller records it
 
     @property
     def inlier_fraction(self) -> float:
@@ -156,7 +157,7 @@ def _ransac(v, scale, a_range, thr_px, rng, n_hyp=64, extra=()):
     return W[b], float(A[b])
 
 
-def _start(cam, xy, v, a_range_rad, inlier_px, rng):
+def _start(cam, xy, v, a_range_rad, inlier_px, rng, n_hyp=64):
     """RANSAC start, with the algebraic conic fit and the mean ray as extra hypotheses."""
     extra = []
     Q = fit_conic_normalised(xy)
@@ -169,7 +170,7 @@ def _start(cam, xy, v, a_range_rad, inlier_px, rng):
         w0 = m / np.linalg.norm(m)
         extra.append((w0, float(np.median(np.arccos(np.clip(v @ w0, -1, 1))))))
     scale0 = px_per_rad(cam, v, extra[-1][0]) if extra else np.full(len(v), cam.fx)
-    return _ransac(v, scale0, a_range_rad, max(inlier_px, 2.0), rng, extra=extra)
+    return _ransac(v, scale0, a_range_rad, max(inlier_px, 2.0), rng, n_hyp=n_hyp, extra=extra)
 
 
 def _irls(cam, v, w, a, inlier_px, max_iter, tight: bool):
@@ -237,7 +238,7 @@ def _finish(cam, v, w, a, thr, corr_points) -> ConeFit | None:
 def fit_cone(cam: CameraModel, xy: np.ndarray, a_range_rad=(1e-3, 1.4), inlier_px: float = 1.5,
              rng: np.random.Generator | None = None, corr_points: float = 1.0,
              start: tuple[np.ndarray, float] | None = None, max_iter: int = 12,
-             tight: bool = False) -> ConeFit | None:
+             tight: bool = False, n_hyp: int = 64) -> ConeFit | None:
     """Robust fit of a sphere's silhouette cone to edge points.
 
     Args:
@@ -251,6 +252,7 @@ def fit_cone(cam: CameraModel, xy: np.ndarray, a_range_rad=(1e-3, 1.4), inlier_p
         start: (w, a_rad) of a previous fit; skips the RANSAC start.
         max_iter: most reweighted Gauss-Newton steps.
         tight: the inlier band only narrows during the iterations (see :func:`_irls`).
+        n_hyp: 3-point hypotheses of the RANSAC start (more where few points are on the outline).
 
     Returns:
         :class:`ConeFit`, or None when no plausible cone explains the points.
@@ -263,7 +265,7 @@ def fit_cone(cam: CameraModel, xy: np.ndarray, a_range_rad=(1e-3, 1.4), inlier_p
     if len(v) < 8:
         return None
     if start is None:
-        start = _start(cam, xy, v, a_range_rad, inlier_px, rng)
+        start = _start(cam, xy, v, a_range_rad, inlier_px, rng, n_hyp)
         if start is None:
             return None
     out = _irls(cam, v, np.asarray(start[0], float), float(start[1]), inlier_px, max_iter, tight)

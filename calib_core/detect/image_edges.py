@@ -107,3 +107,27 @@ def outward_normals(closed_curve_px: np.ndarray, centre_px: np.ndarray) -> np.nd
     flip = ((closed_curve_px - centre_px) * nrm).sum(axis=1) < 0
     nrm[flip] *= -1
     return nrm
+
+
+def edge_peaks(t_px: np.ndarray, g: np.ndarray, min_strength: float, k: int) -> np.ndarray:
+    """The ``k`` strongest sub-pixel gradient peaks of each profile, (K, k) offsets (px), NaN
+    where a profile has fewer peaks above ``min_strength``.
+
+    For a first look where one edge per profile is not enough: a dark ball before a dark
+    backrest has a weak outline between the backrest's strong edge outside it and nothing
+    inside; which peak on each ray is the ball's is left to a fit over all of them.
+    """
+    K, M = g.shape
+    step = float(t_px[1] - t_px[0])
+    peak = np.zeros_like(g, dtype=bool)
+    peak[:, 1:-1] = (g[:, 1:-1] >= g[:, :-2]) & (g[:, 1:-1] > g[:, 2:]) & (g[:, 1:-1] >= min_strength)
+    gp = np.where(peak, g, -1.0)
+    idx = np.argsort(-gp, axis=1)[:, :k]  # (K, k) strongest first
+    ok = np.take_along_axis(gp, idx, axis=1) > 0
+    i = np.clip(idx, 1, M - 2)
+    gm = np.take_along_axis(g, i - 1, axis=1)
+    g0 = np.take_along_axis(g, i, axis=1)
+    gq = np.take_along_axis(g, i + 1, axis=1)
+    den = gm - 2 * g0 + gq
+    off = np.where(np.abs(den) > 1e-12, 0.5 * (gm - gq) / np.where(den == 0, 1, den), 0.0)
+    return np.where(ok, t_px[i] + np.clip(off, -0.5, 0.5) * step, np.nan)

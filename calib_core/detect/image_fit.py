@@ -17,7 +17,7 @@ import numpy as np
 from calib_core.camera import CameraModel
 from calib_core.detect.image_cone import (ConeFit, centre_uv_and_cov, fit_cone, normalize_near,
                                           silhouette_uv, silhouette_xy)
-from calib_core.detect.image_edges import (gradient_magnitude, outward_normals, pick_edges,
+from calib_core.detect.image_edges import (edge_peaks, gradient_magnitude, outward_normals, pick_edges,
                                            ray_directions, sample_profiles, smooth_roi)
 from calib_core.detect.image_region import Candidate
 
@@ -175,6 +175,8 @@ def refine_candidate(image: np.ndarray, cam: CameraModel, cand: Candidate, spher
         return CandidateFit(False, fit1)
     # ---- pass 2: along the normals of the fitted silhouette, narrow band (twice when the
     # first pass-2 fit is still rough: clutter drew pass 1 off the outline)
+    if fit1.reading == "several":
+        rng = np.random.default_rng(len(fit1.inliers))  # (see _pass1_several: its own stream)
     p2 = _pass2(cam, sig, fit1, R, a_range_rad, rng)
     if p2 is not None and p2[0].sigma_px > clean_rms_px(R):
         again = _pass2(cam, sig, p2[0], R, a_range_rad, rng)
@@ -184,6 +186,12 @@ def refine_candidate(image: np.ndarray, cam: CameraModel, cand: Candidate, spher
         return CandidateFit(False, "no round outline")
     res, outside_bad = _fitted(cam, sig, p2, R, sphere_radius_m)
     _judge(cam, res, R, outside_bad, sig.diff is not None)
+    if res.ok and fit1.reading == "several" and sig.diff is None \
+            and _inside_colour_agreement(sig, res.silhouette_px, R) < SEVERAL_MIN_INSIDE_AGREEMENT:
+        # a circle picked from several edges per ray can run through unrelated things (a block's
+        # corner, mortar lines): a sphere's inside has one hue all along its outline (shading
+        # changes only the brightness)
+        res.ok, res.credible, res.reason = False, False, "no round outline"
     return res
 
 
@@ -215,13 +223,21 @@ def _first_pass(cam, sig: _Signal, cand: Candidate, R: float, band, a_range_rad,
         alt = _pass1(cam, pts, dirs, t, gc, seg_in, "strongest", a_range_rad, R, rng)
         if alt is not None and (fit1 is None or _quality(alt) > _quality(fit1)):
             fit1 = alt
-    if fit1 is None or fit1.inliers.sum() < 0.4 * seg_in.sum():
-        return "no round outline"
-    if fit1.sigma_px > max(PASS1_MAX_RMS_PX, PASS1_MAX_RMS_FRAC * R):
-        # the refinement narrows the band around this outline; it cannot turn an outline this
-        # ragged into a round one (saves the cost of pass 2 on clutter)
+        if not _pass1_usable(fit1, seg_in, R):
+            alt = _pass1_several(cam, sig, pts, dirs, step, R, seg_in, a_range_rad)
+            if alt is not None and (fit1 is None or _quality(alt) > _quality(fit1)):
+                fit1 = alt
+    if not _pass1_usable(fit1, seg_in, R):
+        # too little of the rays on it, or so ragged that the refinement, which narrows the
+        # band around this outline, cannot make it round (saves the cost of pass 2 on clutter)
         return "no round outline"
     return fit1
+
+
+def _pass1_usable(fit1: ConeFit | None, seg_in: np.ndarray, R: float) -> bool:
+    """A pass-1 fit worth refining: on 40 % of the rays and not too ragged."""
+    return (fit1 is not None and fit1.inliers.sum() >= 0.4 * seg_in.sum()
+            and fit1.sigma_px <= max(PASS1_MAX_RMS_PX, PASS1_MAX_RMS_FRAC * R))
 
 
 def _fitted(cam, sig: _Signal, p2, R: float, sphere_radius_m: float) -> tuple[CandidateFit, float]:
@@ -313,21 +329,28 @@ def _pass2(cam, sig, fit1: ConeFit, R: float, a_range_rad, rng):
         uv2 = sil[ok2] + te[ok2, None] * nrm[ok2]
         # edge points are within a few px of the model outline: Newton from its normalised points
         xy2 = normalize_near(cam, uv2, sil_xy[ok2], iterations=3)
-        kw = dict(inlier_px=max(1.0, 0.01 * R), rng=rng, corr_points=max(1.0, CORR_LENGTH_PX * k2 / perim))
-        fit = fit_cone(cam, xy2, a_range_rad, start=(fit1.w, fit1.a_rad), **kw)
-        if fit is None or fit.sigma_px > clean_rms_px(R):
-            # edges of things touching the sphere (a seat, a backrest) pulled the fit off:
-            # search again for the cone the tightest majority of the edges lie on
-            # (it must be very round on the edges it keeps: a circle forced onto a box or onto
-            # chair legs keeps a few tangent stretches, each off by up to the band)
-            alt = fit_cone(cam, xy2, a_range_rad, tight=True, **kw)
-            if (alt is not None and alt.sigma_px <= TIGHT_RMS_FRACTION * clean_rms_px(R)
-                    and alt.inliers.sum() >= TIGHT_MIN_SUPPORT * k2
-                    and (fit is None or _quality(alt) > _quality(fit))):
-                fit = alt
+        fit = _pass2_fit(cam, xy2, fit1, R, a_range_rad, rng, k2, perim)
         if fit is not None and (best is None or _quality(fit) > _quality(best[0])):
             best = (fit, ok2, s2, k2)
     return best
+
+
+def _pass2_fit(cam, xy2, fit1: ConeFit, R: float, a_range_rad, rng, k2: int, perim: float) -> ConeFit | None:
+    """The pass-2 cone on one reading's edge points: refined from ``fit1``, or, when that is
+    not clean, the tightest majority's cone if it is very round."""
+    kw = dict(inlier_px=max(1.0, 0.01 * R), rng=rng, corr_points=max(1.0, CORR_LENGTH_PX * k2 / perim))
+    fit = fit_cone(cam, xy2, a_range_rad, start=(fit1.w, fit1.a_rad), **kw)
+    if fit is None or fit.sigma_px > clean_rms_px(R):
+        # edges of things touching the sphere (a seat, a backrest) pulled the fit off:
+        # search again for the cone the tightest majority of the edges lie on
+        # (it must be very round on the edges it keeps: a circle forced onto a box or onto
+        # chair legs keeps a few tangent stretches, each off by up to the band)
+        alt = fit_cone(cam, xy2, a_range_rad, tight=True, **kw)
+        if (alt is not None and alt.sigma_px <= TIGHT_RMS_FRACTION * clean_rms_px(R)
+                and alt.inliers.sum() >= TIGHT_MIN_SUPPORT * k2
+                and (fit is None or _quality(alt) > _quality(fit))):
+            fit = alt
+    return fit
 
 
 def _quality(fit: ConeFit) -> float:
@@ -345,6 +368,63 @@ def _pass1(cam, pts, dirs, t, g, seg_in, rule, a_range_rad, R, rng) -> ConeFit |
     uv1 = pts[ok] + t1[ok, None] * dirs[ok]
     return fit_cone(cam, normalize_near(cam, uv1), a_range_rad, inlier_px=max(1.5, 0.04 * R), rng=rng,
                     max_iter=6)
+
+
+# the "several" reading: this many strongest edges per ray, down to this share of the typical
+# strongest edge of a ray, and this many 3-point hypotheses (most points are not the outline)
+SEVERAL_PEAKS = 4
+SEVERAL_MIN_SHARE = 0.15
+SEVERAL_HYPOTHESES = 512
+SEVERAL_BAND = (-0.65, 0.8)
+
+
+def _pass1_several(cam, sig: _Signal, pts, dirs, step, R, seg_in, a_range_rad) -> ConeFit | None:
+    """Pass-1 cone fit to the few strongest colour edges of every ray, then to one edge per ray
+    (the one nearest to that cone): where the sphere's outline is neither the outermost nor
+    the strongest edge (a dark ball before a dark backrest whose own edge is stronger and
+    farther out). The band reaches farther in (SEVERAL_BAND): a candidate drawn to the chair
+    around the ball can be twice the ball's size."""
+    t = np.arange(SEVERAL_BAND[0] * R, SEVERAL_BAND[1] * R + step, step)
+    g = gradient_magnitude(sig.colour_profiles(pts, dirs, t), step)
+    te = edge_peaks(t, g, SEVERAL_MIN_SHARE * float(np.median(g.max(axis=1)[seg_in])), SEVERAL_PEAKS)
+    ray = np.broadcast_to(np.arange(len(te))[:, None], te.shape)
+    ok = np.isfinite(te) & seg_in[:, None]
+    uv = pts[ray[ok]] + te[ok, None] * dirs[ray[ok]]
+    inside = cam.in_image(uv, margin_px=2.0)
+    uv, ray = uv[inside], ray[ok][inside]
+    if len(np.unique(ray)) < 12:
+        return None
+    xy = normalize_near(cam, uv)
+    band = max(1.5, 0.04 * R)
+    # its own random stream: trying this reading must not change the draws of the fits after it
+    # (the detection of a candidate this reading does not help stays what it was)
+    fit = fit_cone(cam, xy, a_range_rad, inlier_px=band, rng=np.random.default_rng(len(xy)), max_iter=6,
+                   n_hyp=SEVERAL_HYPOTHESES)
+    if fit is None:
+        return None
+    # one edge per ray: the nearest to the cone
+    order = np.lexsort((np.abs(fit.residuals_px), ray))
+    first = order[np.r_[True, ray[order][1:] != ray[order][:-1]]]
+    fit = fit_cone(cam, xy[first], a_range_rad, inlier_px=band, max_iter=6, start=(fit.w, fit.a_rad))
+    if fit is not None:
+        fit.reading = "several"
+    return fit
+
+
+SEVERAL_MIN_INSIDE_AGREEMENT = 0.75
+HUE_TOLERANCE_RAD = 0.12
+
+
+def _inside_colour_agreement(sig: _Signal, sil: np.ndarray, R: float) -> float:
+    """Share of the outline whose colour just inside points (as an RGB direction: shading
+    scales it, does not turn it) within HUE_TOLERANCE_RAD of the median inside colour."""
+    gap = max(3.0, 0.04 * R)
+    c_in = sample_profiles(sig.img, sig.origin, sil, outward_normals(sil, sil.mean(axis=0)),
+                           -gap - np.arange(3.0)).mean(axis=1) + 1.0
+    d = c_in / np.linalg.norm(c_in, axis=1, keepdims=True)
+    med = np.median(d, axis=0)
+    med /= max(float(np.linalg.norm(med)), 1e-9)
+    return float(np.mean(np.arccos(np.clip(d @ med, -1.0, 1.0)) < HUE_TOLERANCE_RAD))
 
 
 def _outside_mismatch(sig: _Signal, sil: np.ndarray, nrm: np.ndarray, R: float) -> float:

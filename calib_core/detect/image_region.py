@@ -117,7 +117,19 @@ def candidates_from_background(small: np.ndarray, bg_small: np.ndarray, s: int,
     # a global brightness change between the background and the capture is not the sphere
     diff -= np.median(diff[::4, ::4].reshape(-1, diff.shape[2]), axis=0).astype(np.float32)
     D = np.sqrt(np.einsum("ijk,ijk->ij", diff, diff))
-    r_lo_s = r_bounds_px[0] / s
+    n, lab, stats = _difference_blobs(D, r_bounds_px[0] / s, min_contrast)
+    out = []
+    for i in range(1, n):
+        c = _background_candidate(D, lab, stats[i], i, s, r_bounds_px)
+        if c is not None:
+            out.append(c)
+    out.sort(key=lambda c: -c.strength * c.radius_px)
+    return out, D
+
+
+def _difference_blobs(D: np.ndarray, r_lo_s: float, min_contrast: float):
+    """Connected regions (count, labels, stats) where the smoothed difference ``D`` stands out
+    from its own noise, opened and closed at a fraction of the smallest radius (small px)."""
     Db = cv2.GaussianBlur(D, (0, 0), max(1.0, 0.12 * r_lo_s))
     sub = Db[::3, ::3]
     med = float(np.median(sub))
@@ -129,30 +141,32 @@ def candidates_from_background(small: np.ndarray, bg_small: np.ndarray, s: int,
     mask = cv2.morphologyEx(mask, cv2.MORPH_OPEN, ker)
     mask = cv2.morphologyEx(mask, cv2.MORPH_CLOSE, ker)
     n, lab, stats, _ = cv2.connectedComponentsWithStats(mask, connectivity=8)
-    h, w = mask.shape
-    out = []
+    return n, lab, stats
+
+
+def _background_candidate(D, lab, stat, i: int, s: int, r_bounds_px) -> Candidate | None:
+    """The candidate of difference blob ``i`` (its thin parts dropped), or None when it is too
+    small, too large or too elongated (unless it touches the border)."""
+    h, w = lab.shape
     r_min, r_max = r_bounds_px
-    for i in range(1, n):
-        x, y, bw, bh, area = stats[i]
-        if np.sqrt(area / np.pi) * s < 0.45 * r_min:
-            continue
-        blob = _drop_thin_parts((lab[y:y + bh, x:x + bw] == i).astype(np.uint8))
-        ys, xs = np.nonzero(blob)
-        r_eq = np.sqrt(len(xs) / np.pi) * s
-        if r_eq < 0.45 * r_min or r_eq > 2.2 * r_max:
-            continue
-        cx, cy, ma, mi, ang = _blob_ellipse(ys + y, xs + x)
-        touches = xs.min() + x <= 1 or ys.min() + y <= 1 or xs.max() + x >= w - 2 or ys.max() + y >= h - 2
-        if not touches and mi / ma < 0.4:
-            continue
-        strength = float(np.median(D[ys + y, xs + x]))
-        # small px centre (pixel centres) -> full px: (p + 0.5) * s - 0.5
-        c_full = (np.array([cx, cy]) + 0.5) * s - 0.5
-        rad = np.sqrt(ma * mi) * s if not touches else max(ma * s, r_eq)
-        out.append(Candidate(c_full, float(rad), (float(ma * s), float(mi * s)), ang,
-                             bool(touches), strength, "background"))
-    out.sort(key=lambda c: -c.strength * c.radius_px)
-    return out, D
+    x, y, bw, bh, area = stat
+    if np.sqrt(area / np.pi) * s < 0.45 * r_min:
+        return None
+    blob = _drop_thin_parts((lab[y:y + bh, x:x + bw] == i).astype(np.uint8))
+    ys, xs = np.nonzero(blob)
+    r_eq = np.sqrt(len(xs) / np.pi) * s
+    if r_eq < 0.45 * r_min or r_eq > 2.2 * r_max:
+        return None
+    cx, cy, ma, mi, ang = _blob_ellipse(ys + y, xs + x)
+    touches = xs.min() + x <= 1 or ys.min() + y <= 1 or xs.max() + x >= w - 2 or ys.max() + y >= h - 2
+    if not touches and mi / ma < 0.4:
+        return None
+    strength = float(np.median(D[ys + y, xs + x]))
+    # small px centre (pixel centres) -> full px: (p + 0.5) * s - 0.5
+    c_full = (np.array([cx, cy]) + 0.5) * s - 0.5
+    rad = np.sqrt(ma * mi) * s if not touches else max(ma * s, r_eq)
+    return Candidate(c_full, float(rad), (float(ma * s), float(mi * s)), ang, bool(touches), strength,
+                     "background")
 
 
 def radius_ladder(shape, s: int, r_bounds_px: tuple[float, float], r_min: float, hi_factor: float,
