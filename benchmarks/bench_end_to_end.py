@@ -7,6 +7,7 @@ scale (the product's default: estimated where observable and a test finds a scal
 Seeds default to ones no test uses. Usage:
 
     .venv/bin/python benchmarks/bench_end_to_end.py [--seeds 31 32] [--scale 0.5] [--presets canal moved ...]
+        [--cache DIR]
 """
 
 from __future__ import annotations
@@ -51,8 +52,11 @@ def detection_counts(gt: dict, dets: dict, cam: str, used: set, tol_px: float = 
     return f"{found}/{visible}", false_used
 
 
-def run_one(folder: Path, preset: str, seed: int, scale: float) -> list[list]:
-    root = generate_session(folder / f"{preset}-{seed}", preset, seed, scale=scale)
+def run_one(folder: Path, preset: str, seed: int, scale: float, cached: bool = False) -> list[list]:
+    """``cached``: ``folder`` is a cache (bench_image_sessions.py's naming); reuse a session there."""
+    root = folder / (f"{preset}-s{seed}-x{scale:g}" if cached else f"{preset}-{seed}")
+    if not (cached and (root / "ground_truth.yaml").is_file()):
+        generate_session(root, preset, seed, scale=scale)
     session, gt = load_session(root), load_ground_truth(root)
     t0 = time.perf_counter()
     dets = detect_session(SessionData(session), {})
@@ -93,6 +97,7 @@ def main() -> None:
     ap.add_argument("--seeds", type=int, nargs="+", default=[31, 32])
     ap.add_argument("--scale", type=float, default=0.5, help="image resolution factor")
     ap.add_argument("--presets", nargs="+", default=[p for p in PRESETS if p != "wrongdiam"])
+    ap.add_argument("--cache", help="keep generated sessions in this folder and reuse them (as bench_image_sessions.py)")
     args = ap.parse_args()
     head = ["preset", "seed", "cam", "rot deg", "t mm", "used", "not found", "image <=3px/whole",
             "false used", "flagged", "truly moved",
@@ -100,9 +105,10 @@ def main() -> None:
     print(" | ".join(head))
     errs = []
     with tempfile.TemporaryDirectory() as tmp:
+        folder = Path(args.cache) if args.cache else Path(tmp)
         for seed in args.seeds:
             for preset in args.presets:
-                for row in run_one(Path(tmp), preset, seed, args.scale):
+                for row in run_one(folder, preset, seed, args.scale, bool(args.cache)):
                     print(" | ".join(str(v) for v in row), flush=True)
                     if len(row) > 4:
                         errs.append((float(row[3]), float(row[4]), float(row[12])))

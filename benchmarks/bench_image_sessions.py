@@ -24,7 +24,7 @@ from __future__ import annotations
 import argparse
 import sys
 import time
-from collections import Counter
+from collections import Counter, defaultdict
 from pathlib import Path
 
 import numpy as np
@@ -41,7 +41,7 @@ from calib_core.session import load_session  # noqa: E402
 from calib_core.synth.generate import generate_session  # noqa: E402
 from calib_core.synth.ground_truth import load_ground_truth  # noqa: E402
 
-PRESETS = ("lidar-chair", "rgbd-stick", "rgbd-table", "clutter", "seabed-slab")
+PRESETS = ("lidar-chair", "rgbd-stick", "rgbd-table", "clutter", "seabed-slab", "gym", "carried-photo")
 TOL_PX = 3.0
 CONFIDENT = 0.5
 
@@ -77,10 +77,14 @@ def run_session(root: Path, preset: str, seed: int, st: dict, listing: bool) -> 
             truth = gt["captures"][cap.id]["images"][cam]
             verdict = judge(det, truth)
             st[verdict] += 1
+            if "motion_px" in gt["captures"][cap.id]:  # photographic presets: recall by motion blur
+                st["by_blur"][blur_class(gt["captures"][cap.id]["motion_px"])][verdict] += 1
             st["visible"] += bool(truth.get("visible"))
             name = f"{preset} s{seed} {cap.id} {cam}"
             if det.found:
                 st["scored"].append((det.score, verdict == "right"))
+            if verdict == "right":
+                st["right_off"].append(float(np.hypot(*(det.center_uv_px - np.asarray(truth["center_uv_px"], float)))))
             if verdict == "wrong":
                 uv = truth.get("center_uv_px")
                 off = np.hypot(*(det.center_uv_px - uv)) if uv is not None else float("nan")
@@ -94,7 +98,8 @@ def run_session(root: Path, preset: str, seed: int, st: dict, listing: bool) -> 
 
 
 def new_stats() -> dict:
-    return {"right": 0, "wrong": 0, "missed": 0, "ok-absent": 0, "visible": 0, "ms": [], "scored": [],
+    return {"right": 0, "wrong": 0, "missed": 0, "ok-absent": 0, "visible": 0, "ms": [], "scored": [], "right_off": [],
+            "by_blur": defaultdict(Counter),
             "wrong_list": [], "miss_reasons": Counter(), "miss_list": []}
 
 
@@ -102,20 +107,52 @@ def print_table(rows: dict, seeds, scale: float) -> None:
     print(f"\nImage detection alone on generated sessions, seeds {seeds[0]}-{seeds[-1]}, scale {scale:g} "
           f"(right = within {TOL_PX:.0f} px of the truth)")
     print("| preset | images | whole ball visible | right | wrong | of them score >= 0.5 | missed (visible) "
-          "| misses (reason: count) | ms/image (median) |")
-    print("|---|---|---|---|---|---|---|---|---|")
+          "| misses (reason: count) | ms/image (median) | centre RMS of right (px) |")
+    print("|---|---|---|---|---|---|---|---|---|---|")
     for preset, st in rows.items():
         n = st["right"] + st["wrong"] + st["missed"] + st["ok-absent"]
         conf = sum(1 for s, _, _ in st["wrong_list"] if s >= CONFIDENT)
         miss = ", ".join(f"{k}: {v}" for k, v in st["miss_reasons"].most_common()) or "-"
         print(f"| {preset} | {n} | {st['visible']} | {st['right']} | {st['wrong']} | {conf} | {st['missed']} "
-              f"| {miss} | {np.median(st['ms']):.1f} |")
+              f"| {miss} | {np.median(st['ms']):.1f} | {_rms(st['right_off'])} |")
     wrong = sorted((w for st in rows.values() for w in st["wrong_list"]), reverse=True)
     print("\nWrong detections (score, image, px off), most confident first:")
     for s, name, off in wrong[:30]:
         print(f"  {s:.2f}  {name}  {off:.0f} px{'   <- confident' if s >= CONFIDENT else ''}")
     if not wrong:
         print("  none")
+
+
+BLUR_CLASSES = ("still", "<= 4 px", "4-8 px", "> 8 px")
+
+
+def blur_class(motion_px) -> str:
+    """The class of a capture's motion blur (its length in px at the session's scale)."""
+    if motion_px is None:
+        return BLUR_CLASSES[0]
+    b = float(np.hypot(*motion_px))
+    return BLUR_CLASSES[1] if b <= 4 else BLUR_CLASSES[2] if b <= 8 else BLUR_CLASSES[3]
+
+
+def print_blur_table(rows: dict) -> None:
+    """Right / wrong / missed per motion-blur class (presets whose truth records the blur)."""
+    lines = []
+    for preset, st in rows.items():
+        for cls in BLUR_CLASSES:
+            c = st["by_blur"].get(cls)
+            if c:
+                n = sum(c.values())
+                lines.append(f"| {preset} | {cls} | {n} | {c['right']} ({100 * c['right'] / n:.0f} %) | {c['wrong']} "
+                             f"| {c['missed']} |")
+    if lines:
+        print("\nBy motion blur of the ball during the exposure (length at this scale)")
+        print("| preset | blur | images | right | wrong | missed |")
+        print("|---|---|---|---|---|---|")
+        print("\n".join(lines))
+
+
+def _rms(offsets: list) -> str:
+    return f"{np.sqrt(np.mean(np.square(offsets))):.3f}" if offsets else "-"
 
 
 def parse_seeds(text: str) -> list[int]:
@@ -145,6 +182,7 @@ def main(argv=None) -> int:
         for seed in seeds:
             run_session(session_dir(cache, preset, seed, a.scale), preset, seed, st, a.list)
     print_table(rows, seeds, a.scale)
+    print_blur_table(rows)
     print(reliability_table([x for st in rows.values() for x in st["scored"]],
                             "Reliability of the detection score (all presets; right = within 3 px)"))
     print("load average:", Path("/proc/loadavg").read_text().split()[:3])

@@ -42,6 +42,17 @@ SESSION_PRESETS = ("lidar-chair", "rgbd-stick", "rgbd-table", "clutter", "seabed
 # which no outline feature can tell from the target (the sonar's range and the solver's gate
 # can); measured and shown, not fitted (it would only lower every clean outline's score)
 DECOY_PRESETS = ("decoys", "review")
+# score round 3: the photographic kinds (glossy, panels, motion; photo_cases.py) at 960x540, with
+# ball-free renders as negatives; fitted on seeds 1000-1039 (the ninth round's first measurement
+# seeds) and 0-39 (rendered fresh in score round 3), held out 1040-1079 (its fresh seeds). Rendered cases are read from / written to
+# PHOTO_CACHE (bench_image_presets.py's cache format) when it exists.
+ROUND2 = (-14.700, 0.911, 5.240)  # score round 2's CALIBRATION (no quality term), for comparison
+PHOTO_KINDS = ("glossy", "panels", "motion")
+PHOTO_TRAIN, PHOTO_TRAIN2, PHOTO_TEST = range(1000, 1040), range(0, 40), range(1040, 1080)
+PHOTO_CACHE = Path("/tmp/real_cache")
+CASE_CACHE = Path("/tmp/img6/cache")  # the old kinds' held-out renders (bench_image_presets.py --cache)
+# the kinds before the photographic ones (the old caches hold these only; KINDS now has all)
+OLD_KINDS = tuple(k for k in KINDS if k not in PHOTO_KINDS)
 KINECTNET = (ROOT.parent.parent / "shared" / "data" / "kinectnet-dev", Path("/work/shared/data/kinectnet-dev"))
 
 
@@ -51,16 +62,20 @@ def sources(quick: bool) -> dict:
     s_tr, s_te = (range(1, 2), range(41, 45)) if quick else (range(1, 4), range(41, 61))
     sess = Path("/tmp/sonarcal-image-sessions")
     out = {
-        "cases-train": (lambda: ss.case_records(KINDS, range(n_tr), 0.4, True), True),
+        "cases-train": (lambda: ss.case_records(OLD_KINDS, range(n_tr), 0.4, True), True),
         "sessions-train": (lambda: ss.session_records(SESSION_PRESETS, s_tr, 0.5, sess, True), True),
         "decoys-train": (lambda: ss.session_records(DECOY_PRESETS, s_tr, 0.5, sess, True), False),
-        "cases-test": (lambda: ss.case_records(KINDS, range(1000, 1000 + n_te), 0.5, False), False),
+        "cases-test": (lambda: ss.case_records(OLD_KINDS, range(1000, 1000 + n_te), 0.5, False,
+                                               case_of=_cached_case(CASE_CACHE)), False),
     }
     q = max(1, len(s_te) // 4)  # four cache files: the first ones are usable while the others run
     for tag, k in (("a", 0), ("b", 1), ("c", 2), ("d", 3)):
         seeds = s_te[k * q:(k + 1) * q]
         out[f"sessions-test-{tag}"] = (
             lambda seeds=seeds: ss.session_records(SESSION_PRESETS, seeds, 0.5, sess, False), False)
+    for tag, seeds in (("train", PHOTO_TRAIN), ("train2", PHOTO_TRAIN2), ("test", PHOTO_TEST)):
+        out[f"photo-{tag}"] = (lambda seeds=seeds: ss.photo_records(PHOTO_KINDS, seeds, 0.5, _photo_case),
+                               tag.startswith("train"))
     kn = next((p for p in KINECTNET if (p / "session.yaml").is_file()), None)
     if kn is not None:
         out["kinectnet"] = (lambda: ss.kinectnet_records(kn, ROOT / "benchmarks" / "data" / "kinectnet_centres.yaml"),
@@ -68,15 +83,36 @@ def sources(quick: bool) -> dict:
     return out
 
 
+def _cached_case(cache: Path):
+    """case_of(kind, seed, scale, with_ball) through bench_image_presets' render cache ``cache``
+    (when the folder exists; rendering otherwise)."""
+    import bench_image_presets as bip
+
+    def case_of(kind, seed, scale, with_ball):
+        bip.CACHE = cache if cache.is_dir() else None
+        return bip._case(kind, seed, scale, with_ball=with_ball)
+    return case_of
+
+
+_photo_case = _cached_case(PHOTO_CACHE)
+
+
+def _padded(R: np.ndarray) -> np.ndarray:
+    """Records of an older cache (FIELDS only) padded with NaN to ALL_FIELDS."""
+    R = np.asarray(R, float).reshape(len(R), -1)
+    pad = np.full((len(R), len(ss.ALL_FIELDS) - R.shape[1]), np.nan)
+    return np.hstack([R, pad])
+
+
 def load(name: str, make, cache: Path, fresh: bool) -> np.ndarray:
     f = cache / f"{name}.npy"
     if f.is_file() and not fresh:
-        return np.load(f)
+        return _padded(np.load(f))
     print(f"collecting {name} ...", flush=True)
     R = make()
     cache.mkdir(parents=True, exist_ok=True)
     np.save(f, R)
-    return R
+    return _padded(R)
 
 
 def feature_matrix(R: np.ndarray) -> np.ndarray:
@@ -85,13 +121,13 @@ def feature_matrix(R: np.ndarray) -> np.ndarray:
     rows = []
     for r in R:
         extras = {k: r[col[k]] for k in ("outline_coverage", "edge_rms_px", "outside_mismatch", "edge_contrast",
-                                         "runner_up_ratio")}
+                                         "runner_up_ratio", "fit_quality")}
         rows.append(image_score.features(extras, r[col["radius_px"]], clean_rms_px(r[col["radius_px"]])))
     return np.array(rows).reshape(-1, len(image_score.FEATURES))
 
 
 def column(R: np.ndarray, name: str) -> np.ndarray:
-    return R[:, ss.FIELDS.index(name)]
+    return R[:, ss.ALL_FIELDS.index(name)]
 
 
 def calibration_split(data: dict) -> np.ndarray:
@@ -100,7 +136,7 @@ def calibration_split(data: dict) -> np.ndarray:
     at clutter (hard negatives) are left out: their share of wrong answers is set by how many
     places this script hints at, not by any use of the detector (fitted on them, the score
     came out 0.07 under-confident on the held-out cases); they are measured and shown."""
-    parts = [data[n][0] for n in ("sessions-train", "cases-train") if n in data]
+    parts = [data[n][0] for n in ("sessions-train", "cases-train", "photo-train", "photo-train2") if n in data]
     return np.vstack([R[column(R, "hinted") < 1] for R in parts])
 
 
@@ -184,11 +220,29 @@ def size_of(R: np.ndarray) -> np.ndarray:
     return np.array([image_score.size_term(x) for x in feature_matrix(R)])
 
 
-def fit_size_calibration(cal: np.ndarray) -> np.ndarray:
-    """(w0, w_logit, w_size) of image_score.CALIBRATION: logistic regression of right on the
-    logit and the capped size term, over the calibration split."""
+def quality_of(R: np.ndarray, cap: float = image_score.QUALITY_CAP) -> np.ndarray:
+    """min(fit_quality, cap) of every record (image_score.quality_term at the given cap)."""
+    return np.minimum(column(R, "fit_quality"), cap)
+
+
+def fit_calibration(cal: np.ndarray, cap: float = image_score.QUALITY_CAP) -> np.ndarray:
+    """(w0, w_logit, w_size, w_quality) of image_score.CALIBRATION: logistic regression of right
+    on the logit, the capped size term and the capped fit quality, over the calibration split."""
     z = np.array([image_score.logit(x) for x in feature_matrix(cal)])
-    return image_score.fit_logistic(np.column_stack([z, size_of(cal)]), column(cal, "right"), l2=1e-3)
+    return image_score.fit_logistic(np.column_stack([z, size_of(cal), quality_of(cal, cap)]), column(cal, "right"),
+                                    l2=1e-3)
+
+
+def choose_quality_cap(cal: np.ndarray) -> float:
+    """The largest cap (0.05 grid) whose fit keeps a positive weight on the logit (see
+    image_score's docstring); prints the sweep. Training data only."""
+    best = None
+    for cap in np.arange(0.40, 1.001, 0.05):
+        w = fit_calibration(cal, cap)
+        print(f"  quality cap {cap:.2f}: w = {np.round(w, 3)}")
+        if w[1] > 0:
+            best = float(round(cap, 2))
+    return best
 
 
 def main(argv=None) -> int:
@@ -219,13 +273,16 @@ def main(argv=None) -> int:
     print(f"\ncalibration split: {len(y_cal)} detections, {int(y_cal.sum())} right, {int(len(y_cal) - y_cal.sum())} "
           f"wrong ({int(column(cal, 'hinted').sum())} from hinted looks)")
     print(f"PLATT = ({platt[0]:.4f}, {platt[1]:.4f})   (in the code now: {image_score.PLATT})")
-    cal_w = fit_size_calibration(cal)
-    print(f"CALIBRATION = ({cal_w[0]:.3f}, {cal_w[1]:.3f}, {cal_w[2]:.3f})   (in the code now: "
+    cap = choose_quality_cap(cal)
+    cal_w = fit_calibration(cal, cap)
+    print(f"QUALITY_CAP = {cap}   (in the code now: {image_score.QUALITY_CAP})")
+    print(f"CALIBRATION = ({cal_w[0]:.3f}, {cal_w[1]:.3f}, {cal_w[2]:.3f}, {cal_w[3]:.3f})   (in the code now: "
           f"{image_score.CALIBRATION})")
     sig = lambda t: 1.0 / (1.0 + np.exp(-t))  # noqa: E731
-    models = {"logistic alone": lambda z, R: sig(z),
-              "Platt line alone (score round 1)": lambda z, R: sig(platt[0] * z + platt[1]),
-              "with the size term (new CALIBRATION)": lambda z, R: sig(cal_w[0] + cal_w[1] * z + cal_w[2] * size_of(R))}
+    models = {"Platt line alone (score round 1)": lambda z, R: sig(platt[0] * z + platt[1]),
+              "size term (score round 2)": lambda z, R: sig(ROUND2[0] + ROUND2[1] * z + ROUND2[2] * size_of(R)),
+              "size and quality terms (new CALIBRATION)": lambda z, R: sig(
+                  cal_w[0] + cal_w[1] * z + cal_w[2] * size_of(R) + cal_w[3] * quality_of(R, cap))}
     if a.refit:
         train = np.vstack([R for R, t in data.values() if t])
         fresh = image_score.fit(feature_matrix(train), column(train, "right"), l2=a.l2)

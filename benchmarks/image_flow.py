@@ -80,6 +80,8 @@ def _judge(st: dict, e: dict, truth: dict, used: bool, name: str, listing: bool)
         verdict = "right" if off <= TOL_PX else "wrong"
         st["second_right"] += second and verdict == "right"
         st["right_visible"] += verdict == "right" and bool(truth.get("visible"))
+        if verdict == "right":
+            st.setdefault("right_off", []).append(off)
         if verdict == "wrong":
             st["used_wrong"] += used
             st["wrong_list"].append(f"{name} {off:.1f} px{' (second look)' if second else ''}"
@@ -108,6 +110,11 @@ def print_flow_table(rows: dict, seeds, scale: float) -> None:
         print(f"| {preset} | {st['images']} | {st['visible']} | {st['right']} | {rec:.1f} % | {st['wrong']} "
               f"| {st['used_wrong']} | {st['missed']} | {miss} | {st['second']} ({st['second_right']}) "
               f"| {np.median(st['s']):.1f} |")
+    for preset, st in rows.items():
+        off = st.get("right_off") or []
+        if off:
+            print(f"  {preset}: centre RMS of the right entries {np.sqrt(np.mean(np.square(off))):.3f} px "
+                  f"(max {max(off):.2f}, {len(off)} entries)")
     for preset, st in rows.items():
         for w in st["wrong_list"]:
             print(f"  wrong: {w}")

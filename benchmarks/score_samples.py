@@ -33,21 +33,48 @@ sys.path.insert(0, str(ROOT))
 
 from calib_core.detect import image as image_det  # noqa: E402
 from calib_core.detect.image import detect_sphere_in_image  # noqa: E402
+from outline_cues import CUE_NAMES, outline_cues  # noqa: E402
 
 TOL_PX = 3.0
 FIELDS = ("outline_coverage", "edge_rms_px", "outside_mismatch", "edge_contrast", "runner_up_ratio",
           "radius_px", "fit_quality", "hinted", "right", "score_now")
+# score round 3: more of the extras and the image cues around the outline (outline_cues.py);
+# records collected before have NaN there
+MORE_FIELDS = ("support", "edge_points", "inliers", "refined", "centre_err_px") + CUE_NAMES
+ALL_FIELDS = FIELDS + MORE_FIELDS
 MAX_HARD = 5  # hinted looks per image at other round things
 
 
-def record(det, truth_uv, hinted: bool) -> list[float]:
-    """One record (FIELDS order) of a found detection."""
+def record(det, truth_uv, hinted: bool, img=None) -> list[float]:
+    """One record (FIELDS order; with ``img``, ALL_FIELDS) of a found detection."""
     e = det.extras
-    right = truth_uv is not None and float(np.hypot(*(det.center_uv_px - truth_uv))) <= TOL_PX
-    return [float(e.get("outline_coverage", 0.0)), float(e.get("edge_rms_px", 0.0)),
+    err = float(np.hypot(*(det.center_uv_px - truth_uv))) if truth_uv is not None else np.inf
+    right = err <= TOL_PX
+    base = [float(e.get("outline_coverage", 0.0)), float(e.get("edge_rms_px", 0.0)),
             float(e.get("outside_mismatch", 0.0)), float(e.get("edge_contrast", 0.0)),
             float(e.get("runner_up_ratio", 0.0)), float(det.radius_px), float(e.get("fit_quality", 0.0)),
             float(hinted), float(right), float(det.score)]
+    if img is None:
+        return base
+    cues = outline_cues(img, det.center_uv_px, det.radius_px)
+    return base + [float(e.get(k, np.nan)) for k in ("support", "edge_points", "inliers", "refined")] + [
+        min(err, 1e6)] + [cues[k] for k in CUE_NAMES]
+
+
+def photo_records(kinds, seeds, scale: float, case_of, log=print) -> np.ndarray:
+    """ALL_FIELDS records of the free detection on the photographic kinds (glossy, panels,
+    motion), with and without the ball (a detection on a ball-free image is wrong);
+    ``case_of(kind, seed, scale, with_ball)`` renders or loads a case."""
+    rows = []
+    for kind in kinds:
+        for seed in seeds:
+            for with_ball in (True, False):
+                case = case_of(kind, seed, scale, with_ball)
+                det = detect_sphere_in_image(case.image, case.cam, case.radius_m, background=case.background)
+                if det.found:
+                    rows.append(record(det, case.true_uv_px if with_ball else None, False, case.image))
+        log(f"  photo {kind} s{seeds[0]}-{seeds[-1]}: {len(rows)} records")
+    return np.array(rows, float).reshape(-1, len(ALL_FIELDS))
 
 
 def _coarse_places(img, cam, radius_m, background):
@@ -66,7 +93,7 @@ def image_records(img, cam, radius_m, background, truth_uv, truth_r, hard: bool)
     out = []
     det = detect_sphere_in_image(img, cam, radius_m, background=background)
     if det.found:
-        out.append(record(det, truth_uv, False))
+        out.append(record(det, truth_uv, False, img))
     if not hard:
         return out
     bg = image_det.prepare_background(background) if background is not None else None
@@ -82,23 +109,26 @@ def image_records(img, cam, radius_m, background, truth_uv, truth_r, hard: bool)
     for c, r in hints:
         d = detect_sphere_in_image(img, cam, radius_m, background=background, hint_uv_px=c, hint_radius_px=r)
         if d.found:
-            out.append(record(d, truth_uv, True))
+            out.append(record(d, truth_uv, True, img))
     return out
 
 
-def case_records(kinds, seeds, scale: float, hard: bool, log=print) -> np.ndarray:
+def case_records(kinds, seeds, scale: float, hard: bool, log=print, case_of=None) -> np.ndarray:
+    """Records of the old kinds' cases; ``case_of(kind, seed, scale, with_ball)`` renders or
+    loads a case (default: render_case)."""
     from calib_core.synth.image_cases import render_case
 
+    case_of = case_of or (lambda k, s, sc, wb: render_case(k, s, sc, with_ball=wb))
     rows = []
     for kind in kinds:
         for seed in seeds:
             for with_ball in (True, False):
-                case = render_case(kind, seed, scale, with_ball=with_ball)
+                case = case_of(kind, seed, scale, with_ball)
                 uv = case.true_uv_px if with_ball else None
                 for bg in ((case.background, None) if case.background is not None else (None,)):
                     rows += image_records(case.image, case.cam, case.radius_m, bg, uv, case.radius_px, hard)
             log(f"  cases {kind} s{seed}: {len(rows)} records")
-    return np.array(rows, float).reshape(-1, len(FIELDS))
+    return np.array(rows, float).reshape(-1, len(ALL_FIELDS))
 
 
 def session_records(presets, seeds, scale: float, cache: Path, hard: bool, log=print) -> np.ndarray:
@@ -128,7 +158,7 @@ def session_records(presets, seeds, scale: float, cache: Path, hard: bool, log=p
                     rows += image_records(img, model, data.session.sphere_radius_m, data.background(cam), uv,
                                           r, hard and uv is not None and r > 0)
             log(f"  sessions {preset} s{seed}: {len(rows)} records")
-    return np.array(rows, float).reshape(-1, len(FIELDS))
+    return np.array(rows, float).reshape(-1, len(ALL_FIELDS))
 
 
 def kinectnet_records(session_dir: Path, reference: Path) -> np.ndarray:
@@ -148,4 +178,4 @@ def kinectnet_records(session_dir: Path, reference: Path) -> np.ndarray:
             uv = np.asarray(r["centre_uv_px"], float) if r.get("centre_uv_px") and r["flag"] == "whole" else None
             rows += image_records(load_image(cap.image_paths[cam]), model, ses.sphere_radius_m, None, uv, 0.0,
                                   False)
-    return np.array(rows, float).reshape(-1, len(FIELDS))
+    return np.array(rows, float).reshape(-1, len(ALL_FIELDS))

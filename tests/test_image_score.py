@@ -47,19 +47,37 @@ def test_recalibration_corrects_an_over_confident_logit():
 
 
 def test_probability_applies_the_recalibration_to_the_logit():
-    ex = {"outline_coverage": 0.8, "edge_rms_px": 0.4, "outside_mismatch": 0.05, "edge_contrast": 30.0}
+    ex = {"outline_coverage": 0.8, "edge_rms_px": 0.4, "outside_mismatch": 0.05, "edge_contrast": 30.0,
+          "fit_quality": 0.5}
     x = features(ex, 40.0, 0.9)
     z = logit(x)
     assert np.isclose(probability(x, 0.0, platt=(1.0, 0.0)), 1 / (1 + np.exp(-z)))
-    w0, w1, w2 = image_score.CALIBRATION
-    assert np.isclose(probability(x, 0.0), 1 / (1 + np.exp(-(w0 + w1 * z + w2 * np.log(40.0)))))
-    assert w1 > 0 and w2 > 0  # monotone: the ranking of the logistic is kept
+    w0, w1, w2, w3 = image_score.CALIBRATION
+    assert np.isclose(probability(x, 0.0), 1 / (1 + np.exp(-(w0 + w1 * z + w2 * np.log(40.0) + w3 * 0.5))))
+    assert w1 > 0 and w2 > 0 and w3 > 0  # monotone: the ranking of the logistic is kept
+
+
+def test_the_logit_does_not_read_the_fit_quality():
+    """fit_quality enters the recalibration only (pipeline's CLEAR_LOGIT decisions stay put)."""
+    ex = {"outline_coverage": 0.8, "edge_rms_px": 0.4, "outside_mismatch": 0.05, "edge_contrast": 30.0}
+    assert logit(features({**ex, "fit_quality": 0.3}, 40.0, 0.9)) == logit(features({**ex, "fit_quality": 0.9},
+                                                                                     40.0, 0.9))
+
+
+def test_quality_term_lowers_ragged_outlines_up_to_the_cap():
+    """The photographic kinds' wrong outlines (fit quality 0.26-0.63) score far lower than the same
+    outline at the cap; past the cap the quality adds nothing."""
+    ex = {"outline_coverage": 0.6, "edge_rms_px": 0.6, "outside_mismatch": 0.1, "edge_contrast": 60.0}
+    p = {q: probability(features({**ex, "fit_quality": q}, 30.0, 0.7), 0.0) for q in (0.3, 0.5, 0.7, 0.95)}
+    assert p[0.3] < 0.1 < p[0.5] < p[0.7]
+    assert p[0.7] == p[0.95]
 
 
 def test_size_term_raises_the_score_of_larger_outlines_up_to_the_cap():
     """A low-contrast, rough outline (as the right ones in the sessions scored 0.2-0.7): larger is
     likelier right (a texture arc makes a small circle more easily), no gain past the cap."""
-    ex = {"outline_coverage": 0.75, "edge_rms_px": 0.65, "outside_mismatch": 0.2, "edge_contrast": 12.0}
+    ex = {"outline_coverage": 0.75, "edge_rms_px": 0.65, "outside_mismatch": 0.2, "edge_contrast": 12.0,
+          "fit_quality": 0.7}
     p = {r: probability(features(ex, r, 0.05 * r), 0.0) for r in (15.0, 30.0, 45.0, 60.0, 90.0)}
     assert p[15.0] < p[30.0] < p[45.0]
     # past the cap only the logistic's own (weak) size feature still acts

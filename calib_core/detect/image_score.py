@@ -28,6 +28,19 @@ logit + w2 * min(log radius, log RADIUS_CAP_PX)) (CALIBRATION, fitted by fit_ima
 the same calibration split as PLATT). The cap: no extra confidence beyond RADIUS_CAP_PX (an
 uncapped size term was rejected in the first round: any large rough outline scored ~1.00).
 
+Score round 3: the recalibration also reads the fit's own quality (``fit_quality``: the share of
+the outline seen, discounted by its spread), capped at QUALITY_CAP. On the photographic kinds
+(glossy gym balls, beach balls with gores, motion blur; photo_cases.py) the wrong outlines
+(texture or gore arcs, a ball's part, ball-free images) had fit quality 0.26-0.63 while 95 % of
+the right ones had >= 0.6; the logit and the size term scored them 0.5-1.0. So p = sigmoid(w0 +
+w1 logit + w2 size_term + w3 min(fit_quality, QUALITY_CAP)) (CALIBRATION, fitted on the
+calibration split with the photographic kinds' training seeds 0-39 and 1000-1039 added). The cap is the largest
+(0.05 grid) for which the logit keeps a positive weight: uncapped, the quality term takes over
+the ranking (w_logit < 0) and a clean, smooth outline would score lower than a rough one.
+The 2-3 wrong outlines per 110 that the term does not catch (a beach-ball fit dragged 4-6 px by
+its gores with a clean rim, textured ball-free interiors) keep scores > 0.9: BENCHMARKS.md
+"Score round 3".
+
 Approximation: synthetic scenes are not real ones; the reliability tables say how far the
 probabilities can be trusted on each.
 """
@@ -38,7 +51,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-FEATURES = ("coverage", "rms_rel", "outside_mismatch", "log_contrast", "runner_up", "log_radius")
+FEATURES = ("coverage", "rms_rel", "outside_mismatch", "log_contrast", "runner_up", "log_radius", "fit_quality")
+# COEF reads the first six; fit_quality enters only the recalibration (quality_term)
+N_LOGIT = 6
 # fitted by the second-round fit_image_score.py (git history; training cases seeds 0-39, with and without
 # the ball; 197 detections, 150 right, 47 wrong), ridge 0.1, on the second-round detector;
 # intercept first, then FEATURES order. Kept as the ranking (see the module docstring).
@@ -47,10 +62,13 @@ COEF = np.array([-5.2736, 1.2452, -9.0932, -4.8996, 2.6376, 0.0000, 0.5479])
 # free search of the training data (314 detections, 305 right, 9 wrong; detector of main at 01111cd)
 PLATT = (0.6492, 1.2840)
 L2 = 1.0  # ridge weight of the comparison refit (fit_image_score.py --refit)
-# (w0, w_logit, w_size) of p = sigmoid(w0 + w_logit * logit + w_size * size_term): fit_image_score.py
-# on the calibration split (free search of sessions-train and cases-train; score round 2)
-CALIBRATION = (-14.700, 0.911, 5.240)
+# (w0, w_logit, w_size, w_quality) of p = sigmoid(w0 + w_logit * logit + w_size * size_term +
+# w_quality * quality_term): fit_image_score.py on the calibration split (free search of
+# sessions-train, cases-train and photo-train seeds 0-39 and 1000-1039; score round 3; round 2 had (-14.700, 0.911, 5.240)
+# without the quality term)
+CALIBRATION = (-23.362, 0.101, 4.338, 18.856)
 RADIUS_CAP_PX = 45.0  # the size term stops growing here (see the module docstring)
+QUALITY_CAP = 0.70  # the quality term stops growing here (see the module docstring)
 
 
 def features(extras: dict, radius_px: float, clean_rms_px: float) -> np.ndarray:
@@ -60,17 +78,23 @@ def features(extras: dict, radius_px: float, clean_rms_px: float) -> np.ndarray:
                      float(extras.get("outside_mismatch", 0.0)),
                      float(np.log1p(max(extras.get("edge_contrast", 0.0), 0.0))),
                      float(extras.get("runner_up_ratio", 0.0)),
-                     float(np.log(max(radius_px, 1.0)))])
+                     float(np.log(max(radius_px, 1.0))),
+                     float(extras.get("fit_quality", 0.0))])
 
 
 def logit(x: np.ndarray, coef: np.ndarray = COEF) -> float:
     """The logistic model's log-odds for feature vector ``x`` (before the recalibration)."""
-    return float(coef[0] + np.dot(coef[1:], x))
+    return float(coef[0] + np.dot(coef[1:], x[:len(coef) - 1]))
 
 
 def size_term(x: np.ndarray) -> float:
     """min(log radius, log RADIUS_CAP_PX) of feature vector ``x``."""
     return float(min(x[FEATURES.index("log_radius")], np.log(RADIUS_CAP_PX)))
+
+
+def quality_term(x: np.ndarray) -> float:
+    """min(fit_quality, QUALITY_CAP) of feature vector ``x``."""
+    return float(min(x[FEATURES.index("fit_quality")], QUALITY_CAP))
 
 
 def probability(x: np.ndarray, fallback: float, platt: tuple[float, float] | None = None) -> float:
@@ -80,8 +104,8 @@ def probability(x: np.ndarray, fallback: float, platt: tuple[float, float] | Non
         return float(fallback)
     if platt is not None:
         return float(_sigmoid(platt[0] * logit(x) + platt[1]))
-    w0, w1, w2 = CALIBRATION
-    return float(_sigmoid(w0 + w1 * logit(x) + w2 * size_term(x)))
+    w0, w1, w2, w3 = CALIBRATION
+    return float(_sigmoid(w0 + w1 * logit(x) + w2 * size_term(x) + w3 * quality_term(x)))
 
 
 def entry_logit(entry: dict) -> float | None:

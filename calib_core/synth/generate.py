@@ -24,6 +24,7 @@ from calib_core.synth.drift import drift_positions, write_drift_frames
 from calib_core.synth.ground_truth import GT_FILE, GT_FORMAT, to_list
 from calib_core.synth.layout import Layout, Placement, add_surroundings, place_targets, sample_layout
 from calib_core.synth.occlusion import occluded_fraction
+from calib_core.synth.photo_session import background_photo, capture_light, dress, render_capture, session_look
 from calib_core.synth.presets import for_seed, get_preset
 from calib_core.synth.range_capture import simulate_range
 from calib_core.synth.rig import silhouette_uv
@@ -49,8 +50,11 @@ def generate_session(out_dir, preset, seed: int, progress=None, **overrides) -> 
     pl = place_targets(L, r_rig)
     add_surroundings(L, pl, r_scene, r_rig)
     tick = _Ticker((P.n_captures + P.n_flange) * (1 + len(L.cams)) + len(L.cams), progress)
-    manifest_caps, gt_caps, first_radiance = _write_captures(out, L, pl, tick)
-    cam_entries = _write_backgrounds(out, L, first_radiance, r_noise, tick)
+    look = session_look(P.photo, seed, L.radius) if P.photo else None
+    if look is not None:  # indoors: air instead of the lab's water veil (the range sensor does not see it)
+        L.water = look.air
+    manifest_caps, gt_caps, first_radiance = _write_captures(out, L, pl, tick, look)
+    cam_entries = _write_backgrounds(out, L, first_radiance, r_noise, tick, look)
     session, gt = _manifest_and_truth(L, cam_entries, manifest_caps, gt_caps, r_noise)
     atomic_write_yaml(out / GT_FILE, gt)
     atomic_write_yaml(out / "session.yaml", session)
@@ -73,8 +77,9 @@ def _capture_ids(P) -> list[str]:
     return [f"p{i + 1:02d}" for i in range(P.n_captures)] + [f"f{i + 1:02d}" for i in range(P.n_flange)]
 
 
-def _write_captures(out: Path, L: Layout, pl: Placement, tick) -> tuple[list, dict, dict]:
-    """Every capture's cloud and images: (manifest entries, truth per capture, first radiance per camera)."""
+def _write_captures(out: Path, L: Layout, pl: Placement, tick, look=None) -> tuple[list, dict, dict]:
+    """Every capture's cloud and images: (manifest entries, truth per capture, first radiance per camera;
+    with ``look``, a photographic preset's, also ``(cam, "photo")`` -> that image's Photo)."""
     P, rig = L.P, L.rig
     manifest_caps, gt_caps, first_radiance = [], {}, {}
     for k, cid in enumerate(_capture_ids(P)):
@@ -85,10 +90,13 @@ def _write_captures(out: Path, L: Layout, pl: Placement, tick) -> tuple[list, di
         cloud = simulate_range(P.range_sensor, scan_scene, rig.T_world_sonar, L.cfg, r_cap)
         save_cloud(out / "clouds" / f"{cid}{P.cloud_format}", cloud)
         tick(f"{cid} sonar")
-        images = _write_images(out, L, cid, img_scene, r_cap, first_radiance if k == 0 else None, tick)
+        light = _capture_light(L, pl, look, k)
+        images = _write_images(out, L, cid, img_scene, r_cap, first_radiance if k == 0 else None, tick, light)
         manifest_caps.append({"id": cid, "cloud": f"clouds/{cid}{P.cloud_format}", "images": images})
         gt_caps[cid] = _capture_truth(rig, img_scene, L.radius, pl.centers[k] if is_target else None,
                                       pl.image_centers[k] if is_target else None)
+        if light is not None:  # a photographic preset: the ball's blur during the exposure (px), if any
+            gt_caps[cid]["motion_px"] = None if light[1].motion_px is None else to_list(light[1].motion_px)
         if k == pl.drift_idx:  # the drift preset: frames recorded while the sphere drifts
             gt_caps[cid]["drift"] = write_drift_frames(
                 out, cid, rig, partial(_drift_scene, L, k, extra),
@@ -119,50 +127,70 @@ def _drift_scene(L: Layout, k: int, extra: list, c) -> Scene:
     return L.scene(c, np.random.default_rng([L.seed, 5, k]), extra)
 
 
-def _write_images(out: Path, L: Layout, cid: str, img_scene, r_cap, first_radiance: dict | None, tick) -> dict:
-    """Render and save every camera's image of one capture; keep the radiance in ``first_radiance``."""
+def _capture_light(L: Layout, pl: Placement, look, k: int):
+    """(look, light) of target capture ``k`` of a photographic preset, else None."""
+    if look is None or k >= L.P.n_captures:
+        return None
+    eye = L.rig.cams[L.cams[0]][1][:3, 3]
+    return look, capture_light(look, L.seed, k, pl.image_centers[k], L.radius, eye, L.P.scale)
+
+
+def _write_images(out: Path, L: Layout, cid: str, img_scene, r_cap, first_radiance: dict | None, tick,
+                  light=None) -> dict:
+    """Render and save every camera's image of one capture; keep the radiance in ``first_radiance``.
+    ``light``: (SessionLook, CaptureLight) of a photographic preset (the scene is dressed)."""
     images = {}
     for cam_name in L.cams:
         cam, T_wc = L.rig.cams[cam_name]
-        radiance, _ = render_radiance(img_scene, cam, T_wc, L.water, aa=L.opts.aa)
+        photo = None
+        if light is None:
+            radiance, _ = render_radiance(img_scene, cam, T_wc, L.water, aa=L.opts.aa)
+        else:
+            radiance, photo = render_capture(dress(img_scene, light[0]), cam, T_wc, L.water, L.opts.aa, light[1],
+                                             r_cap, L.P.scale)
         if first_radiance is not None:
             first_radiance[cam_name] = radiance
+            if photo is not None:
+                first_radiance[(cam_name, "photo")] = photo
         rel = f"images/{cam_name}/{cid}.jpg"
-        save_image(out / rel, finish_image(radiance, L.opts, r_cap), jpeg_quality=L.P.jpeg_quality)
+        save_image(out / rel, finish_image(radiance, L.opts, r_cap, photo), jpeg_quality=L.P.jpeg_quality)
         images[cam_name] = rel
         tick(f"{cid} {cam_name}")
     return images
 
 
-def _write_backgrounds(out: Path, L: Layout, first_radiance: dict, r_noise, tick) -> dict:
-    """Intrinsics and background frames (or video) of every camera: session.yaml's ``cameras``."""
+def _write_backgrounds(out: Path, L: Layout, first_radiance: dict, r_noise, tick, look=None) -> dict:
+    """Intrinsics and background frames (or video) of every camera: session.yaml's ``cameras``
+    (a photographic preset's: the dressed room with the first capture's camera effects)."""
     P = L.P
-    bg_scene = Scene(tuple(L.static))
+    bg_scene = Scene(tuple(L.static)) if look is None else dress(Scene(tuple(L.static)), look)
     cam_entries = {}
     for cam_name in L.cams:
         cam, T_wc = L.rig.cams[cam_name]
         save_intrinsics_ros(out / "intrinsics" / f"{cam_name}.yaml", cam, cam_name)
         cam_entries[cam_name] = {"intrinsics": f"intrinsics/{cam_name}.yaml"}
         if P.n_backgrounds > 0:
-            radiance, _ = render_radiance(bg_scene, cam, T_wc, L.water, aa=L.opts.aa)
+            photo = first_radiance.get((cam_name, "photo"))
+            photo = None if photo is None else background_photo(photo)
+            radiance, _ = render_radiance(bg_scene, cam, T_wc, L.water, aa=L.opts.aa, photo=photo)
             cam_entries[cam_name].update(_write_background(out, L, cam_name, radiance, first_radiance[cam_name]
-                                                           if P.background_video else None, r_noise))
+                                                           if P.background_video else None, r_noise, photo))
         tick(f"{cam_name} background")
     return cam_entries
 
 
-def _write_background(out: Path, L: Layout, cam_name: str, radiance, first, r_noise) -> dict:
+def _write_background(out: Path, L: Layout, cam_name: str, radiance, first, r_noise, photo=None) -> dict:
     """One camera's background: a video (whose first second still shows the target, ``first``)
     when the preset asks for one, else still frames. Returns its session.yaml keys."""
     P, opts = L.P, L.opts
     if P.background_video:
         # 1 s with the target still in view, then the sphere-free window
-        frames = [finish_image(first, opts, r_noise) for _ in range(VIDEO_FPS)]
-        frames += [finish_image(radiance, opts, r_noise) for _ in range(max(2, P.n_backgrounds) * VIDEO_FPS)]
+        frames = [finish_image(first, opts, r_noise, photo) for _ in range(VIDEO_FPS)]
+        frames += [finish_image(radiance, opts, r_noise, photo) for _ in range(max(2, P.n_backgrounds) * VIDEO_FPS)]
         _save_video(out / "backgrounds" / f"{cam_name}.avi", frames)
         return {"background": f"backgrounds/{cam_name}.avi", "background_window": [1.2, None]}
     for j in range(P.n_backgrounds):
-        save_image(out / "backgrounds" / cam_name / f"bg{j:02d}.jpg", finish_image(radiance, opts, r_noise),
+        save_image(out / "backgrounds" / cam_name / f"bg{j:02d}.jpg", finish_image(radiance, opts, r_noise, photo),
                    jpeg_quality=P.jpeg_quality)
     return {"background": f"backgrounds/{cam_name}/"}
 

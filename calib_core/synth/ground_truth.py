@@ -17,6 +17,8 @@ Format ``sonar-camera-ground-truth/1`` (written next to session.yaml)::
         center_sonar_m: [x, y, z]          # true centre during the scan, unscaled
         center_sonar_at_image_m: [x, y, z] # true centre when the images were taken
         moved_m: 0.0            # distance between the two
+        motion_px: [dx, dy]     # photographic presets only: the ball's blur during the exposure
+                                # (px in the first camera; null = still); the centre is mid-exposure
         images:
           cam1: {center_uv_px: [u, v], visible: true, in_image: true, occluded_fraction: 0.0,
                  distance_m: 2.1}

@@ -185,7 +185,7 @@ def _centers(L: Layout, r_rig) -> list:
 
 def _holder_center(L: Layout, r_rig, i: int, ref: str, corner: bool):
     seen = _HolderCheck(L.P, L.seed, i, L.rig, L.radius, L.base_z, L.ok_extra)
-    zr = _holder_heights(L.P.holder, L.rig, L.radius, L.base_z)
+    zr = _holder_heights(L.P.holder, L.rig, L.radius, L.base_z, L.P.photo)
     try:
         c, _ = sample_target_center(r_rig, L.rig, L.radius, ref, corner, seen, tries=HOLDER_TRIES, z_range=zr)
     except RuntimeError:  # a narrow sensor field: draw in the sensor's view instead
@@ -217,12 +217,14 @@ def add_surroundings(L: Layout, pl: Placement, r_scene, r_rig) -> None:
         L.static += range_scenes.room(r_scene, L.floor_z)
 
 
-def _holder_heights(holder: str, rig, radius: float, base_z: float) -> tuple:
+def _holder_heights(holder: str, rig, radius: float, base_z: float, photo: str = "") -> tuple:
     """World heights (m) for the centre of a sphere on a holder: clear of the floor or seabed
     and, on a table or slab, with the sphere's bottom below every camera (a camera under
     the top of what the sphere rests on sees the top hide it; a chair's seat is narrower
     than the ball, so the occlusion test alone decides there)."""
     lo = base_z + (0.5 if holder == "stick" else 0.3) + radius
+    if holder == "chair" and photo:  # the photographic presets: a seat 0.4-1.1 m high (not a stool of any height)
+        return base_z + 0.40 + radius, base_z + 1.10 + radius
     if holder == "hand":  # held out at arm's length by a person standing on the floor
         return base_z + 0.6, base_z + 1.5
     if holder in ("stick", "chair"):

@@ -32,12 +32,12 @@ PANEL_COLOURS = ((0.85, 0.12, 0.10), (0.95, 0.80, 0.10), (0.10, 0.30, 0.80), (0.
                  (0.95, 0.50, 0.08), (0.92, 0.92, 0.90))
 
 
-def _rand_dir(rng) -> tuple:
+def rand_dir(rng) -> tuple:
     v = rng.normal(0, 1, 3)
     return tuple(v / np.linalg.norm(v))
 
 
-def _key_dir(rng, centre, eye) -> tuple:
+def key_dir(rng, centre, eye) -> tuple:
     """A key light from the camera's side of the ball and above (highlight visible)."""
     view = np.asarray(centre, float) - np.asarray(eye, float)
     view /= np.linalg.norm(view)
@@ -47,16 +47,16 @@ def _key_dir(rng, centre, eye) -> tuple:
     return tuple(k / np.linalg.norm(k))
 
 
-def _photo(rng, centre, radius, eye, look: BallLook, scale: float) -> Photo:
+def draw_photo(rng, centre, radius, eye, look: BallLook, scale: float) -> Photo:
     """Lighting and camera effects drawn for one image (exposure metered later)."""
     wb = (1.0 + rng.uniform(-0.12, 0.12), 1.0, 1.0 + rng.uniform(-0.12, 0.12))
-    return Photo(key_dir=_key_dir(rng, centre, eye), softness=float(rng.uniform(0.02, 0.12)),
+    return Photo(key_dir=key_dir(rng, centre, eye), softness=float(rng.uniform(0.02, 0.12)),
                  occluders=((tuple(centre), radius),), ao=float(rng.uniform(0.7, 1.0)), ball=look,
                  vignette=float(rng.uniform(0.1, 0.5)), wb_gains=tuple(float(g) for g in wb),
                  bloom_px=float(rng.uniform(2.0, 6.0)) * scale, bloom_gain=float(rng.uniform(0.3, 0.8)))
 
 
-def _metered(rng, photo: Photo, L: np.ndarray) -> Photo:
+def metered(rng, photo: Photo, L: np.ndarray) -> Photo:
     """Auto-exposure: scale so the frame's mean radiance lands at 0.35-0.55 (of white)."""
     target = float(rng.uniform(0.35, 0.55))
     return replace(photo, exposure=float(np.clip(target / max(float(L.mean()), 1e-3), 0.4, 3.0)))
@@ -73,10 +73,10 @@ def _render(rng, parts_static, parts_ball, with_ball, cam, T_wc, air, photo, aa)
     photo = photo if with_ball else replace(photo, occluders=())
     scene = Scene(tuple(parts_static + (parts_ball if with_ball else [])))
     L, hit = render_radiance(scene, cam, T_wc, air, aa=aa, photo=photo)
-    return L, hit, scene, _metered(rng, photo, L)
+    return L, hit, scene, metered(rng, photo, L)
 
 
-def _gym_look(rng, c, radius) -> tuple[tuple, BallLook]:
+def gym_look(rng, c, radius) -> tuple[tuple, BallLook]:
     r = rng.random()
     if r < 0.5:
         alb = np.full(3, rng.uniform(0.35, 0.65))
@@ -87,10 +87,10 @@ def _gym_look(rng, c, radius) -> tuple[tuple, BallLook]:
     else:
         alb = np.array(room.BALL_COLOURS[int(rng.integers(len(room.BALL_COLOURS)))]) * rng.uniform(0.8, 1.0)
     look = BallLook(tuple(c), radius, ks=float(rng.uniform(0.3, 1.0)), shininess=float(rng.uniform(15, 150)),
-                    seam_dir=_rand_dir(rng) if rng.random() < 0.5 else None,
+                    seam_dir=rand_dir(rng) if rng.random() < 0.5 else None,
                     seam_width_m=float(rng.uniform(0.002, 0.006)),
-                    logo_dir=_rand_dir(rng) if rng.random() < 0.5 else None, logo_deg=float(rng.uniform(10, 25)),
-                    valve_dir=_rand_dir(rng) if rng.random() < 0.3 else None)
+                    logo_dir=rand_dir(rng) if rng.random() < 0.5 else None, logo_deg=float(rng.uniform(10, 25)),
+                    valve_dir=rand_dir(rng) if rng.random() < 0.3 else None)
     return tuple(float(a) for a in np.clip(alb, 0, 1)), look
 
 
@@ -102,13 +102,13 @@ def glossy(rng, rig, cam, T_wc, scale, with_ball):
                                 lambda c: c[2] - radius < eye[2] - 0.3, dist_range=(1.3, 4.5))
     floor_z = float(c[2] - radius - (rng.uniform(0.4, 0.5) if on_chair else 0.0))
     static = room.room_scene(rng, floor_z, [c])
-    alb, look = _gym_look(rng, c, radius)
+    alb, look = gym_look(rng, c, radius)
     style = dict(room.ball_style(rng), albedo=alb, foam_contrast=float(rng.uniform(0.0, 0.05)), holder="stick")
     ball = room.ball_parts(rng, style, c, radius, floor_z, eye)[0]
     static = _clear_view(static, ball, T_wc)
     parts = [ball] + ([range_scenes.chair(rng, c, radius, floor_z, eye)] if on_chair else [])
     air = room.room_air(rng)
-    photo = _photo(rng, c, radius, eye, look, scale)
+    photo = draw_photo(rng, c, radius, eye, look, scale)
     L, _, _, photo = _render(rng, static, parts, with_ball, cam, T_wc, air, photo, 3)
     return L, c, radius, photo, f"glossy/{'chair' if on_chair else 'floor'}"
 
@@ -117,9 +117,9 @@ def _panel_look(rng, c, radius) -> BallLook:
     n_col = int(rng.integers(2, 5))
     idx = rng.choice(len(PANEL_COLOURS), n_col, replace=False)
     cols = tuple(tuple(float(x) for x in PANEL_COLOURS[i]) for i in idx)
-    axis = _rand_dir(rng)
+    axis = rand_dir(rng)
     a = np.asarray(axis)
-    e = np.cross(a, _rand_dir(rng))
+    e = np.cross(a, rand_dir(rng))
     valve = tuple(e / np.linalg.norm(e) * 0.9 + a * 0.44)
     return BallLook(tuple(c), radius, ks=float(rng.uniform(0.1, 0.6)), shininess=float(rng.uniform(20, 100)),
                     axis=axis, panels=int(rng.choice([6, 6, 8, 4])), panel_rgb=cols,
@@ -141,7 +141,7 @@ def panels(rng, rig, cam, T_wc, scale, with_ball):
     parts = parts[:1] if where == "floor" else parts
     static = _clear_view(static, parts[0], T_wc)
     air = room.room_air(rng)
-    photo = _photo(rng, c, radius, eye, look, scale)
+    photo = draw_photo(rng, c, radius, eye, look, scale)
     L, _, _, photo = _render(rng, static, parts, with_ball, cam, T_wc, air, photo, 3)
     return L, c, radius, photo, f"panels/{where}"
 
@@ -157,13 +157,13 @@ def motion(rng, rig, cam, T_wc, scale, with_ball):
     parts = room.ball_parts(rng, style, c, radius, floor_z, eye)
     static = _clear_view(static, parts[0], T_wc)
     look = BallLook(tuple(c), radius, ks=float(rng.uniform(0.0, 0.15)), shininess=20.0,
-                    seam_dir=_rand_dir(rng) if rng.random() < 0.3 else None,
-                    logo_dir=_rand_dir(rng) if rng.random() < 0.4 else None, logo_deg=float(rng.uniform(12, 25)))
+                    seam_dir=rand_dir(rng) if rng.random() < 0.3 else None,
+                    logo_dir=rand_dir(rng) if rng.random() < 0.4 else None, logo_deg=float(rng.uniform(12, 25)))
     ang = rng.uniform(0, 2 * np.pi)
     blur = float(rng.uniform(4.0, 30.0)) * scale
     motion_px = (blur * np.cos(ang), blur * np.sin(ang))
     air = room.room_air(rng)
-    photo = _photo(rng, c, radius, eye, look, scale)
+    photo = draw_photo(rng, c, radius, eye, look, scale)
     L, hit, scene, photo = _render(rng, static, parts, with_ball, cam, T_wc, air, photo, 3)
     if with_ball:
         L0, _ = render_radiance(Scene(tuple(static)), cam, T_wc, air, aa=3, photo=replace(photo, occluders=()))

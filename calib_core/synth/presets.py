@@ -38,6 +38,7 @@ class Preset:
     drift_m: one capture's sphere drifts this far (m) during its scan; the session then holds
         ``frames/<cam>/<id>_<j>.jpg`` recorded during that scan (a bag written from it shows the drift).
     corner_fraction: share of captures aimed near an image corner.
+    photo: "" (plain renders) or a photographic look, "gym" or "carried" (see the field's comment).
     decoy_hidden: one capture (not the moved one) shows cam1 a decoy that looks exactly like the
         target beside it while a panel hides half of the true target (image only): a wrong image
         detection (calib_core.synth.world.decoy_and_occluder).
@@ -75,6 +76,10 @@ class Preset:
     drift_m: float = 0.0
     turbidity: float = 0.0
     decoy_hidden: bool = False
+    # photographic look (calib_core.synth.photo_session): "" = the plain renderer; "gym" (glossy gym
+    # ball of a shade drawn by seed, key light, cast and contact shadows, vignetting, exposure,
+    # textured room) or "carried" (foam ball with a seam / logo, some captures motion-blurred)
+    photo: str = ""
 
     def with_(self, **changes) -> "Preset":
         """A copy with some fields changed (e.g. ``scale=0.25`` for fast tests)."""
@@ -136,6 +141,20 @@ _LIST.append(Preset(
     "two on its sides, hiding part of its outline), in front of a wall; RGB-D (even seeds) or 16-ring LiDAR (odd "
     "seeds); no background frames", n_captures=8, scene="lab", range_sensor="rgbd|lidar16", holder="hand",
     solid_ball=True, diameter_range=(0.3, 0.5), bright=True, n_backgrounds=0))
+
+# photographic sessions (issue 11, real sets A and B): the effects of calib_core.synth.photo
+_LIST += [
+    Preset("gym", "real set A: a glossy gym ball (0.5-0.7 m, grey most often, also dark, white or coloured; a "
+           "seam, logo or valve) resting on a chair, brick wall, tiled floor, a key light with cast and contact "
+           "shadows, highlight and bloom, vignetting, metered exposure; 2 cameras, 16-ring LiDAR, no background "
+           "frames", n_cameras=2, n_captures=8, scene="lab", range_sensor="lidar16", holder="chair",
+           solid_ball=True, diameter_range=(0.5, 0.7), n_backgrounds=0, photo="gym"),
+    Preset("carried-photo", "real set B: a yellow foam ball with a seam and/or logo carried by a person in front "
+           "of a brick wall, shadows, vignetting, exposure, motion blur on some captures (2-24 px at 1080p); RGB-D "
+           "(even seeds) or 16-ring LiDAR (odd seeds); no background frames", n_captures=8, scene="lab",
+           range_sensor="rgbd|lidar16", holder="hand", solid_ball=True, diameter_range=(0.3, 0.5), bright=True,
+           n_backgrounds=0, photo="carried"),
+]
 
 PRESETS: dict[str, Preset] = {p.name: p for p in _LIST}
 
