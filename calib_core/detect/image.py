@@ -30,7 +30,7 @@ import numpy as np
 
 from calib_core.camera import CameraModel
 from calib_core.detect.image_fit import CandidateFit, refine_candidate
-from calib_core.detect.image_fit import clean_rms_px
+from calib_core.detect.image_fit import TIGHT_MIN_SUPPORT, clean_rms_px, outline_rms_limit_px
 from calib_core.detect.image_discs import candidates_by_discs
 from calib_core.detect.image_highlight import host_candidates, is_clipped_spot
 from calib_core.detect.image_hough import hough_circle
@@ -534,6 +534,18 @@ def _disputed_by(fits, f: CandidateFit) -> CandidateFit | None:
     return None
 
 
+def _blur_range_floor_m(f: CandidateFit, apparent_r_px: float, sphere_radius_m: float) -> float:
+    """The range's share of a blurred outline's systematic floor (m): the plateau scatter
+    (image_fit.outline_rms_limit_px beyond a sharp edge's) moves the whole outline in or out
+    together, so the apparent radius, and the range as range / radius, carry it; 0 for a sharp edge."""
+    width = f.extras.get("edge_width_px", np.nan) if f.support >= TIGHT_MIN_SUPPORT else np.nan
+    floor2 = outline_rms_limit_px(apparent_r_px, width) ** 2 - clean_rms_px(apparent_r_px) ** 2
+    if not floor2 > 0 or not apparent_r_px > 0:
+        return 0.0
+    range_m = sphere_radius_m / np.sin(f.fit.a_rad)
+    return float(range_m * np.sqrt(floor2) / apparent_r_px)
+
+
 def _detection(f: CandidateFit, sphere_radius_m: float, method: str, n_cands: int,
                runner_up: float) -> ImageDetection:
     """The found detection of an accepted outline, with its score and extras."""
@@ -543,6 +555,7 @@ def _detection(f: CandidateFit, sphere_radius_m: float, method: str, n_cands: in
     apparent_r = _mean_radius(f.silhouette_px)
     rng_sigma = float(sphere_radius_m * np.cos(f.fit.a_rad) / np.sin(f.fit.a_rad) ** 2
                       * np.sqrt(f.fit.cov_params[2, 2]))
+    rng_sigma = float(np.hypot(rng_sigma, _blur_range_floor_m(f, apparent_r, sphere_radius_m)))
     extras["range_sigma_m"] = round(rng_sigma, 5)
     # the cone's half-angle is what the camera measures; range_m = radius / sin(angle), so a
     # wrong diameter in session.yaml shows up as a range that disagrees with the sonar's
