@@ -88,6 +88,9 @@ def pose_rows(s, gt: dict, dets: dict, factor: float) -> list[tuple]:
     stated.SONAR_CENTRE_VARIANCE_FACTOR = factor
     try:
         res = calibrate_session(s, dets, {"detect": False, "leave_one_out": False})
+    except Exception as e:  # a session the product refuses (wrongdiam): say so, go on
+        print(f"  {s.root.name}: not calibrated ({str(e)[:80]})")
+        return []
     finally:
         stated.SONAR_CENTRE_VARIANCE_FACTOR = old
     out = []
@@ -127,6 +130,7 @@ def main() -> None:
     ap.add_argument("--scale", type=float, default=0.5)
     ap.add_argument("--factors", type=float, nargs="+", default=[1.0, stated.SONAR_CENTRE_VARIANCE_FACTOR])
     ap.add_argument("--cache", help="keep generated sessions and their detections here")
+    ap.add_argument("--rows", action="store_true", help="print one row per camera solve too")
     args = ap.parse_args()
     print("load average before:", os.getloadavg())
     per_sensor, per_factor, worst = {}, {f: [] for f in args.factors}, []
@@ -136,13 +140,18 @@ def main() -> None:
         for preset in args.presets:
             for seed in args.seeds:
                 s, gt, dets = detected(cache, preset, seed, args.scale)
-                acc = per_sensor.setdefault(gt["sonar"].get("sensor", "?"), ([], [], []))
+                acc = per_sensor.setdefault(gt["sonar"].get("sensor") or "sonar", ([], [], []))
                 for a, b in zip(acc, detection_z2(gt, dets)):
                     a.extend(b)
+                line = []
                 for f in args.factors:
                     rows = pose_rows(s, gt, dets, f)
                     per_factor[f] += rows
                     worst += [(r[2], f, preset, seed) for r in rows]
+                    line.append(" ".join(f"{r[0]:.3f} deg/{r[1]:.1f} mm/m2 {r[2]:.2f}" for r in rows))
+                if args.rows:
+                    print(f"{preset} s{seed}: " + " | ".join(f"x{f:g}: {v}" for f, v in zip(args.factors, line)),
+                          flush=True)
     _print_detections(per_sensor)
     print()
     _print_poses(per_factor)
