@@ -16,6 +16,7 @@ covariance.
 from __future__ import annotations
 
 import argparse
+import copy
 import os
 import pickle
 import sys
@@ -103,6 +104,42 @@ def pose_rows(s, gt: dict, dets: dict, factor: float) -> list[tuple]:
     return out
 
 
+def _with_truth(gt: dict, dets: dict, image: bool, sonar_axes: tuple) -> dict:
+    """Detections with the true image centres (``image``) and the sonar centres' errors kept only
+    along ``sonar_axes`` of the ray frame (0 along the ray, 1 across horizontally, 2 vertically)."""
+    out = copy.deepcopy(dets)
+    for cid, e in out.items():
+        g = gt["captures"].get(cid) or {}
+        for key, v in e.items():
+            if v.get("center") is None or not g:
+                continue
+            if key == "sonar":
+                X = np.asarray(g["center_sonar_m"], float)
+                B = _ray_frame(X)
+                err = B @ (np.asarray(v["center"], float) - X)
+                err[[i for i in range(3) if i not in sonar_axes]] = 0.0
+                v["center"] = (X + B.T @ err).tolist()
+            elif image:
+                v["center"] = list(g["images"][key]["center_uv_px"])
+    return out
+
+
+def attribution(s, gt: dict, dets: dict) -> None:
+    """Which input carries a session's pose error: re-solved with parts of the inputs made exact."""
+    cases = [("as detected", False, (0, 1, 2)), ("true image centres", True, (0, 1, 2)),
+             ("true sonar centres", False, ()), ("true images; sonar error along the ray only", True, (0,)),
+             ("true images; sonar error across, horizontal only", True, (1,)),
+             ("true images; sonar error across, vertical only", True, (2,))]
+    print(f"{s.root.name}: pose error with parts of the inputs made exact (factor {stated.SONAR_CENTRE_VARIANCE_FACTOR:g})")
+    print("| inputs | camera | rot deg | t mm | m2/dof |")
+    print("|---|---|---|---|---|")
+    for name, image, axes in cases:
+        for cam, (r, t, m2) in zip(s.cameras, pose_rows(s, gt, _with_truth(gt, dets, image, axes),
+                                                        stated.SONAR_CENTRE_VARIANCE_FACTOR)):
+            print(f"| {name} | {cam} | {r:.3f} | {t:.1f} | {m2:.2f} |")
+    print()
+
+
 def _print_detections(per_sensor: dict) -> None:
     print("| sensor | captures | sonar z2 along ray | across, horizontal | across, vertical | sonar all axes | "
           "image centres (m2/dof, n) | image ranges (z2, n) |")
@@ -131,6 +168,8 @@ def main() -> None:
     ap.add_argument("--factors", type=float, nargs="+", default=[1.0, stated.SONAR_CENTRE_VARIANCE_FACTOR])
     ap.add_argument("--cache", help="keep generated sessions and their detections here")
     ap.add_argument("--rows", action="store_true", help="print one row per camera solve too")
+    ap.add_argument("--explain", nargs="*", default=[], metavar="PRESET:SEED",
+                    help="sessions whose pose error is attributed to its inputs (e.g. carried-photo:47)")
     args = ap.parse_args()
     print("load average before:", os.getloadavg())
     per_sensor, per_factor, worst = {}, {f: [] for f in args.factors}, []
@@ -152,6 +191,9 @@ def main() -> None:
                 if args.rows:
                     print(f"{preset} s{seed}: " + " | ".join(f"x{f:g}: {v}" for f, v in zip(args.factors, line)),
                           flush=True)
+        for item in args.explain:
+            preset, seed = item.rsplit(":", 1)
+            attribution(*detected(cache, preset, int(seed), args.scale))
     _print_detections(per_sensor)
     print()
     _print_poses(per_factor)
