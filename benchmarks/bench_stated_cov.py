@@ -30,7 +30,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from calib_core.geometry import invert_T, pose_error, rotvec_from_T  # noqa: E402
 from calib_core.pipeline import SessionData, detect_session  # noqa: E402
 from calib_core.session import load_session  # noqa: E402
-from calib_core.solve import stated  # noqa: E402
+from calib_core.solve import stated, systematic  # noqa: E402
 from calib_core.solve.calibrate import calibrate_session  # noqa: E402
 from calib_core.synth.generate import generate_session  # noqa: E402
 from calib_core.synth.ground_truth import load_ground_truth  # noqa: E402
@@ -61,14 +61,16 @@ def _ray_frame(X: np.ndarray) -> np.ndarray:
 def detection_z2(gt: dict, dets: dict) -> tuple[list, list, list]:
     """Squared Mahalanobis of right detections: sonar (N,3) per ray axis, image centres per dof, image ranges."""
     son, img, rng = [], [], []
+    scale = float(gt.get("range_scale") or 1.0)  # a sound-speed error scales what the sonar measures
     for cid, e in dets.items():
         g = gt["captures"].get(cid) or {}
         if not g.get("target", True) or (g.get("moved_m") or 0) > 0.01:
             continue
         s = e.get("sonar") or {}
         if s.get("center") is not None and s.get("cov_m2") is not None:
-            B = _ray_frame(np.asarray(g["center_sonar_m"], float))
-            err = B @ (np.asarray(s["center"], float) - g["center_sonar_m"])
+            X = scale * np.asarray(g["center_sonar_m"], float)
+            B = _ray_frame(X)
+            err = B @ (np.asarray(s["center"], float) - X)
             son.append(err**2 / np.diag(B @ np.reshape(s["cov_m2"], (3, 3)) @ B.T))
         for cam, v in e.items():
             t = (g.get("images") or {}).get(cam) or {}
@@ -167,11 +169,19 @@ def main() -> None:
     ap.add_argument("--scale", type=float, default=0.5)
     ap.add_argument("--factors", type=float, nargs="+", default=[1.0, stated.SONAR_CENTRE_VARIANCE_FACTOR])
     ap.add_argument("--cache", help="keep generated sessions and their detections here")
+    ap.add_argument("--radial-mm", type=float, help="the common sonar ray offset's sigma (systematic.py), mm")
+    ap.add_argument("--image-px", type=float, help="the common image offset's sigma (systematic.py), px")
     ap.add_argument("--rows", action="store_true", help="print one row per camera solve too")
     ap.add_argument("--explain", nargs="*", default=[], metavar="PRESET:SEED",
                     help="sessions whose pose error is attributed to its inputs (e.g. carried-photo:47)")
     args = ap.parse_args()
+    if args.radial_mm is not None:
+        systematic.SONAR_RADIAL_SIGMA_M = args.radial_mm / 1000
+    if args.image_px is not None:
+        systematic.IMAGE_OFFSET_SIGMA_PX = args.image_px
     print("load average before:", os.getloadavg())
+    print(f"common offsets (systematic.py): sonar along the ray {systematic.SONAR_RADIAL_SIGMA_M * 1000:g} mm, "
+          f"image {systematic.IMAGE_OFFSET_SIGMA_PX:g} px")
     per_sensor, per_factor, worst = {}, {f: [] for f in args.factors}, []
     with tempfile.TemporaryDirectory() as tmp:
         cache = Path(args.cache) if args.cache else Path(tmp)
