@@ -80,6 +80,9 @@ class Preset:
     # ball of a shade drawn by seed, key light, cast and contact shadows, vignetting, exposure,
     # textured room) or "carried" (foam ball with a seam / logo, some captures motion-blurred)
     photo: str = ""
+    # the cameras' lens model: "" = pinhole + plumb_bob, "fisheye" = OpenCV's equidistant model
+    # (a wide dome-port camera, 110-160 deg across; intrinsics written as ROS "equidistant")
+    lens: str = ""
 
     def with_(self, **changes) -> "Preset":
         """A copy with some fields changed (e.g. ``scale=0.25`` for fast tests)."""
@@ -155,6 +158,12 @@ _LIST += [
            range_sensor="rgbd|lidar16", holder="hand", solid_ball=True, diameter_range=(0.3, 0.5), bright=True,
            n_backgrounds=0, photo="carried"),
 ]
+
+# a wide-angle camera (issue 11: other rigs)
+_LIST.append(Preset(
+    "fisheye", "one wide dome-port camera in OpenCV's fisheye (equidistant) model, 110-160 deg across, beside "
+    "the sonar in the canal; half the captures aimed near the image's edges, where the sphere is squashed",
+    n_captures=9, pan_step_deg=0.75, lens="fisheye", corner_fraction=0.5))
 
 PRESETS: dict[str, Preset] = {p.name: p for p in _LIST}
 
