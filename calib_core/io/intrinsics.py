@@ -14,13 +14,16 @@ import yaml
 from calib_core.camera import CameraModel
 from calib_core.errors import SessionError, short_repr
 from calib_core.io.atomic import atomic_write_text
+from calib_core.io.kalibr import camera_from_camchain, is_camchain
 from calib_core.io.yaml_safe import parse_yaml_checked
 
 MAX_INTRINSICS_BYTES = 1024 * 1024
 
 
-def load_intrinsics(path: str | Path) -> CameraModel:
-    """Read a ROS camera_info YAML or an OpenCV FileStorage file into a CameraModel."""
+def load_intrinsics(path: str | Path, camera: str | None = None, entry: str | None = None) -> CameraModel:
+    """Read a ROS camera_info YAML, a Kalibr camchain or an OpenCV FileStorage file into a
+    CameraModel. Of a camchain with several cameras: the ``entry`` key (cam0, ...), else the one
+    whose camera_name or rostopic names ``camera`` (see :mod:`calib_core.io.kalibr`)."""
     path = Path(path)
     if not path.is_file():
         raise SessionError(path, "intrinsics file not found")
@@ -44,6 +47,8 @@ def load_intrinsics(path: str | Path) -> CameraModel:
     data = parse_yaml_checked(path, text)
     if not isinstance(data, dict):
         raise SessionError(path, "expected a ROS camera_info mapping (image_width, camera_matrix, ...)")
+    if is_camchain(data):
+        return camera_from_camchain(path, data, camera, entry)
     return _from_ros(path, data)
 
 
