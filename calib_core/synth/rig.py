@@ -115,7 +115,8 @@ def _sample_lens(rng, width_px, height_px, name, scale, lens):
 def sample_rig(rng: np.random.Generator, n_cameras: int, width_px: int, height_px: int,
                scale: float = 1.0, lens: str = "") -> Rig:
     """Sonar at the origin (small random tilt); one camera anywhere 0.3-1 m from it, or the
-    paper's stereo rig (baseline ~0.74 m, each camera ~0.86 m below-beside the sonar).
+    paper's stereo rig (baseline ~0.74 m, each camera ~0.86 m below-beside the sonar), and for
+    three cameras a third 0.25-0.45 m above the pair's middle.
     ``lens``: "" (pinhole + plumb_bob) or "fisheye" (equidistant)."""
     R_ws = _rot(rng.uniform(-4, 4), rng.uniform(-4, 4), rng.uniform(-2, 2))
     rig = Rig(make_T(R_ws, [0, 0, 0]))
@@ -135,6 +136,10 @@ def sample_rig(rng: np.random.Generator, n_cameras: int, width_px: int, height_p
         eye = np.array([dx + rng.normal(0, 0.01), side * b / 2, -h + rng.normal(0, 0.01)])
         target = look + rng.normal(0, 0.15, 3)
         rig.cams[name] = (_sample_lens(rng, width_px, height_px, name, scale, lens), _camera_pose(rng, eye, target))
+    if n_cameras == 3:  # a third camera above the middle of the stereo pair (drawn last: pairs unchanged)
+        eye = np.array([dx + rng.normal(0, 0.02), rng.normal(0, 0.05), -h + rng.uniform(0.25, 0.45)])
+        rig.cams["cam3"] = (_sample_lens(rng, width_px, height_px, "cam3", scale, lens),
+                            _camera_pose(rng, eye, look + rng.normal(0, 0.15, 3)))
     return rig
 
 
