@@ -275,6 +275,16 @@ class CameraModel:
         )
 
 
+def vertical_fov_rad(cam: CameraModel) -> float:
+    """The angle between the rays of the image's top and bottom edge centres (rad), for any lens
+    model (a fisheye's can pass 90 deg); the pinhole value where a ray is undefined."""
+    ends = np.array([[cam.cx, -0.5], [cam.cx, cam.height_px - 0.5]])
+    v = cam.rays(ends)
+    if not np.isfinite(v).all():
+        return float(2 * np.arctan(cam.height_px / (2 * cam.fy)))
+    return float(np.arccos(np.clip(v[0] @ v[1], -1.0, 1.0)))
+
+
 def distortion_terms(cam: CameraModel) -> str:
     """The names of ``cam.dist``'s values, in order, as every shell shows them."""
     if cam.fisheye:

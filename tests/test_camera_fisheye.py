@@ -141,3 +141,12 @@ def test_detector_finds_a_sphere_near_the_corner_of_a_wide_angle_render():
         assert det.range_m == pytest.approx(float(np.linalg.norm(C)), rel=0.03)
         found += 1
     assert found == 2
+
+
+def test_vertical_field_of_view_for_any_lens():
+    from calib_core.camera import vertical_fov_rad
+
+    pin = CameraModel(1920, 1080, [[1000.0, 0, 960], [0, 1000.0, 540], [0, 0, 1]])
+    assert vertical_fov_rad(pin) == pytest.approx(2 * np.arctan(540 / 1000), abs=1e-3)
+    fe = CameraModel(1920, 1080, [[500.0, 0, 960], [0, 500.0, 540], [0, 0, 1]], np.zeros(4), fisheye=True)
+    assert vertical_fov_rad(fe) == pytest.approx(1080 / 500, abs=1e-3)  # r_d = f theta: 124 deg, not 94
