@@ -16,7 +16,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial import cKDTree
 
-from calib_core.detect.sonar_fit import MAD_TO_SIGMA
+from calib_core.detect.sonar_fit import robust_sigma
 from calib_core.detect.sonar_search import polar_about
 
 N_SECTORS = 16
@@ -94,7 +94,7 @@ def roughness_m(ranges_m: np.ndarray, dirs: np.ndarray, k: int = 8) -> float:
     if len(ranges_m) <= k:
         return float("nan")
     _, nb = cKDTree(dirs).query(dirs, k=k + 1)
-    return float(MAD_TO_SIGMA * np.median(np.abs(ranges_m - np.median(ranges_m[nb[:, 1:]], axis=1))))
+    return robust_sigma(ranges_m - np.median(ranges_m[nb[:, 1:]], axis=1))
 
 
 def longest_attached_arc(att: np.ndarray) -> int:
