@@ -77,6 +77,9 @@ MAX_JUDGED = 16  # candidates pre-screened (cheap), best coarse quality first
 MAX_FULL = 5  # of those, judged at full resolution
 RING_PROBLEM = "part of a larger surface"
 MAX_SIGMA_REL = 0.15  # residual scale above this fraction of the radius: not this sphere
+# ... however noisy the sensor: with returns scattered over a third of the radius a sphere's
+# relief is not measured (a far stereo depth patch of a wall passes for anything)
+NOISY_SIGMA_CAP_REL = 1.0 / 3.0
 MIN_INLIERS = 12
 MIN_COVERAGE = 0.7
 MIN_COVERAGE_SEEDED = 0.4
@@ -132,7 +135,8 @@ class _Judged:
 
 def _max_sigma(radius: float, noise_m: float) -> float:
     """Largest residual scale (m) a sphere of ``radius`` may show (see MAX_SIGMA_REL)."""
-    return max(MAX_SIGMA_REL * radius, 2.0 * noise_m + 0.002 if np.isfinite(noise_m) else 0.0)
+    noisy = min(2.0 * noise_m + 0.002, NOISY_SIGMA_CAP_REL * radius) if np.isfinite(noise_m) else 0.0
+    return max(MAX_SIGMA_REL * radius, noisy)
 
 
 def _assess(X, R, D, fit: FitResult, radius: float, h: float, seeded: bool, noise_m: float):

@@ -22,6 +22,11 @@ from calib_core.detect.sonar_search import polar_about
 N_SECTORS = 16
 
 
+# returns within this many samples outside the outline do not show an attachment: a stereo
+# camera's matching window fattens a foreground edge by a pixel or two
+RIM_SAMPLES = 2.0
+
+
 def attached_sectors(R: np.ndarray, D: np.ndarray, c: np.ndarray, radius: float, alpha: float,
                      h: float, noise_m: float) -> np.ndarray:
     """(N_SECTORS,) bool: the sectors around the outline where something continues it.
@@ -37,12 +42,22 @@ def attached_sectors(R: np.ndarray, D: np.ndarray, c: np.ndarray, radius: float,
     limb = float(np.sqrt(max(cn * cn - radius * radius, 0.0)))
     tol = max(0.3 * radius, 4.0 * noise_m if np.isfinite(noise_m) else 0.0)
     theta, ang = polar_about(D, c / cn)
-    sel = (theta > alpha * 1.05) & (theta <= alpha * 1.05 + max(0.5 * alpha, 2 * h))
+    rim = RIM_SAMPLES * sample_spacing_rad(D)  # edge-fattened / flying returns hug the outline
+    sel = (theta > alpha * 1.05 + rim) & (theta <= alpha * 1.05 + rim + max(0.5 * alpha, 2 * h))
     sector = sector_of(ang[sel])
     front = R[sel] < limb + tol
     n_all = np.bincount(sector, minlength=N_SECTORS)
     n_front = np.bincount(sector[front], minlength=N_SECTORS)
     return (n_front >= 2) & (n_front >= 0.5 * n_all)
+
+
+def sample_spacing_rad(D: np.ndarray) -> float:
+    """The sensor's angular sample spacing (rad) seen in unit directions ``D``: the median angle
+    to each return's nearest neighbour (0 with fewer than 3 returns)."""
+    if len(D) < 3:
+        return 0.0
+    d, _ = cKDTree(D).query(D, k=2)
+    return float(np.median(d[:, 1]))
 
 
 def sector_of(azimuth_rad: np.ndarray) -> np.ndarray:

@@ -162,6 +162,17 @@ def _occlusion_band(disp: np.ndarray, max_shift: int = 24) -> np.ndarray:
     return hidden
 
 
+def _shifted(img: np.ndarray, shift: int, axis: int) -> np.ndarray:
+    """``img`` moved by ``shift`` pixels along ``axis``, the uncovered border -1 (no wrap)."""
+    out = np.full(img.shape, -1.0)
+    src = [slice(None)] * 2
+    dst = [slice(None)] * 2
+    src[axis] = slice(None, -shift) if shift > 0 else slice(-shift, None)
+    dst[axis] = slice(shift, None) if shift > 0 else slice(None, shift)
+    out[tuple(dst)] = img[tuple(src)]
+    return out
+
+
 def _fatten_and_fly(disp: np.ndarray, cfg: StereoConfig, rng: np.random.Generator) -> np.ndarray:
     """Edge fattening (background pixels next to a foreground edge take its disparity) and
     flying pixels (a disparity between the two)."""
@@ -171,7 +182,7 @@ def _fatten_and_fly(disp: np.ndarray, cfg: StereoConfig, rng: np.random.Generato
         for shift in range(-cfg.fatten_px, cfg.fatten_px + 1):
             if shift == 0:
                 continue
-            nb = np.roll(d, shift, axis=axis)
+            nb = _shifted(d, shift, axis)
             edge = (nb - d > 1.0) & (d > 0)  # a clearly nearer neighbour
             fat = edge & (rng.random(d.shape) < cfg.fatten_rate / 2)
             out = np.where(fat, nb, out)
