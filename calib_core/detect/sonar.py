@@ -497,7 +497,7 @@ def _choose(judged: list[_Judged], r: float, seed, W: np.ndarray, h: float) -> t
         return min(good, key=lambda j: np.linalg.norm(j.fit.center_m - seed)), {}
     resolved = ""
     if len(nominal) > 1 and nominal[0].evidence(r) < CLEAR_WINNER * nominal[1].evidence(r):
-        resolved = _free_leader(nominal, W, r, h)
+        nominal, resolved = _resolve(nominal, W, r, h)
         if not resolved:
             return None, _two_candidates(nominal, r, len(good))
     if not nominal:  # sphere-like, but not of session.yaml's size: a decoy or a wrong diameter
@@ -527,6 +527,43 @@ def _two_candidates(nominal: list[_Judged], r: float, n_good: int) -> dict:
     return {"reason": f"two candidates: round objects of the sphere's size at {at} (centres {pos} m)",
             "n_candidates": n_good, "two_candidates": _centres(nominal),
             "candidate_evidence": [round(j.evidence(r), 4) for j in nominal]}
+
+
+def _resolve(nominal: list[_Judged], W: np.ndarray, r: float, h: float) -> tuple[list[_Judged], str]:
+    """(the candidates, the one to take first, and why; or why "" when none can be told apart):
+    the leader hanging free while the others continue into larger surfaces (:func:`_free_leader`),
+    or the one candidate in front of all the others (:func:`_in_front`)."""
+    why = _free_leader(nominal, W, r, h)
+    if why:
+        return nominal, why
+    k, why = _in_front(nominal, W, r, h)
+    return ([nominal[k]] + nominal[:k] + nominal[k + 1:], why) if why else (nominal, "")
+
+
+def _in_front(nominal: list[_Judged], W: np.ndarray, r: float, h: float) -> tuple[int, str]:
+    """(index, why) of the candidate that hides part of every other one (their discs overlap in
+    the sensor's view and each other one is at least a radius farther) while its own outline
+    hangs free but for what holds it (at most FREE_ARC sectors in one run); (-1, "") if none.
+    A ball held out in front of its carrier hides part of the body behind it, and what is left
+    of the body round that hole (a torso's side, a shoulder) can fit a sphere of its size: a
+    round thing with part of its outline hidden is not known to be round there."""
+    C = [j.fit.center_m for j in nominal]
+    rng_m = [float(np.linalg.norm(c)) for c in C]
+    alpha = [float(np.arcsin(min(r / d, 1.0))) + h for d in rng_m]
+    k = int(np.argmin(rng_m))
+    for i, c in enumerate(C):
+        if i == k:
+            continue
+        sep = float(np.arccos(np.clip(C[k] @ c / (rng_m[k] * rng_m[i]), -1.0, 1.0)))
+        if sep >= alpha[k] + alpha[i] or rng_m[i] < rng_m[k] + r:
+            return -1, ""
+    arc = longest_attached_arc(_attached(W, nominal[k], r, h))
+    if arc > FREE_ARC:
+        return -1, ""
+    behind = ", ".join(f"{d:.2f} m" for i, d in enumerate(rng_m) if i != k)
+    return k, (f"occlusion: this round object ({rng_m[k]:.2f} m) hides part of the other"
+               f"{'s' if len(C) > 2 else ''} behind it ({behind}) and hangs free but over {arc}/16 "
+               f"(a ball held out in front of its carrier?)")
 
 
 def _free_leader(nominal: list[_Judged], W: np.ndarray, r: float, h: float) -> str:
