@@ -42,13 +42,22 @@ def attached_sectors(R: np.ndarray, D: np.ndarray, c: np.ndarray, radius: float,
     limb = float(np.sqrt(max(cn * cn - radius * radius, 0.0)))
     tol = max(0.3 * radius, 4.0 * noise_m if np.isfinite(noise_m) else 0.0)
     theta, ang = polar_about(D, c / cn)
-    rim = RIM_SAMPLES * sample_spacing_rad(D)  # edge-fattened / flying returns hug the outline
+    rim = _rim_rad(D, h)
     sel = (theta > alpha * 1.05 + rim) & (theta <= alpha * 1.05 + rim + max(0.5 * alpha, 2 * h))
     sector = sector_of(ang[sel])
     front = R[sel] < limb + tol
     n_all = np.bincount(sector, minlength=N_SECTORS)
     n_front = np.bincount(sector[front], minlength=N_SECTORS)
     return (n_front >= 2) & (n_front >= 0.5 * n_all)
+
+
+def _rim_rad(D: np.ndarray, h: float) -> float:
+    """Angular width (rad) of the rim just outside the outline that shows no attachment: a
+    footprint-less sensor's edge smear (a stereo camera's matching window fattens a foreground
+    edge by a sample or two: RIM_SAMPLES samples); none when the beam's footprint is at least a
+    sample wide, since the cone-widened disc (``h``) already holds that sensor's smear."""
+    spacing = sample_spacing_rad(D)
+    return RIM_SAMPLES * spacing if 2.0 * h < spacing else 0.0
 
 
 def sample_spacing_rad(D: np.ndarray) -> float:
