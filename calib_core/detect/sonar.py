@@ -31,7 +31,9 @@ More than one acceptable candidate gives "two candidates" unless one has CLEAR_W
 other's evidence (score x agreement of the size seen with session.yaml's, given how precisely it
 was measured x scatter against the sensor noise: a carried ball beats the shoulders and head of
 the person behind it), or when only the leader's outline hangs free while a surface continues every
-other one's over a long arc (a head on its shoulders: :func:`_free_leader`); a sphere of another
+other one's over a long arc (a head on its shoulders: :func:`_free_leader`), or when one hangs free
+and hides part of every other one behind it (a ball held out in front of its carrier's body:
+:func:`_in_front`); a sphere of another
 size is reported, not used. Every refusal says why, in words an operator can act on.
 The effective beam width (down to 0) is estimated per session with
 :func:`calib_core.detect.sonar_beam.estimate_beam_width_deg`.
