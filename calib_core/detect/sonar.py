@@ -592,7 +592,9 @@ def _attached(W: np.ndarray, j: _Judged, r: float, h: float) -> np.ndarray:
     R = np.linalg.norm(X, axis=1)
     c = j.fit.center_m
     cn = float(np.linalg.norm(c))
-    return attached_sectors(R, X / R[:, None], c, r, float(np.arcsin(min(r / cn, 1.0))) + h, h, j.noise_m)
+    # (without the fattened rim: a body continues a head's outline from its edge on, as in range5)
+    return attached_sectors(R, X / R[:, None], c, r, float(np.arcsin(min(r / cn, 1.0))) + h, h, j.noise_m,
+                            rim=False)
 
 
 def _centres(judged: list[_Judged]) -> list[list[float]]:

@@ -28,12 +28,13 @@ RIM_SAMPLES = 2.0
 
 
 def attached_sectors(R: np.ndarray, D: np.ndarray, c: np.ndarray, radius: float, alpha: float,
-                     h: float, noise_m: float) -> np.ndarray:
+                     h: float, noise_m: float, rim: bool = True) -> np.ndarray:
     """(N_SECTORS,) bool: the sectors around the outline where something continues it.
 
     ``R``, ``D``: ranges (m) and unit directions of the points near the sphere; ``c`` its centre;
     ``alpha``: the angular radius of the (cone-widened) disc; ``h``: the beam's half-angle;
-    ``noise_m``: the sensor's range noise (or NaN). A sector is attached when at least two
+    ``noise_m``: the sensor's range noise (or NaN); ``rim``: leave out the returns just outside
+    the outline (:func:`_rim_rad`). A sector is attached when at least two
     returns just outside the disc lie at or in front of the limb's range, and they are most of
     that sector's returns there (flying pixels between a ball's edge and the background are a
     minority).
@@ -42,7 +43,7 @@ def attached_sectors(R: np.ndarray, D: np.ndarray, c: np.ndarray, radius: float,
     limb = float(np.sqrt(max(cn * cn - radius * radius, 0.0)))
     tol = max(0.3 * radius, 4.0 * noise_m if np.isfinite(noise_m) else 0.0)
     theta, ang = polar_about(D, c / cn)
-    rim = _rim_rad(D, h)
+    rim = _rim_rad(D, h) if rim else 0.0
     sel = (theta > alpha * 1.05 + rim) & (theta <= alpha * 1.05 + rim + max(0.5 * alpha, 2 * h))
     sector = sector_of(ang[sel])
     front = R[sel] < limb + tol
