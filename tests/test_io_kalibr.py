@@ -91,3 +91,43 @@ def test_round_trip_through_kalibr_export(tmp_path):
     for name, m in models.items():
         back = load_intrinsics(p, name)  # matched by camera_name
         assert back.fisheye == m.fisheye and np.allclose(back.dist, m.dist) and np.allclose(back.K, m.K)
+
+
+@pytest.mark.parametrize("value", [["radtan"], {"a": 1}])
+def test_distortion_model_of_the_wrong_type_is_one_line(tmp_path, value):
+    """A list or mapping as distortion_model is unhashable: it must not escape as a TypeError."""
+    p = _write(tmp_path, {"cam0": {**CHAIN["cam0"], "distortion_model": value}})
+    with pytest.raises(SessionError, match="distortion_model .* is not supported"):
+        load_intrinsics(p)
+
+
+def test_two_entries_naming_the_camera_are_refused_not_guessed(tmp_path):
+    """Two entries with the same camera_name (or a name matching one's rostopic and the other's
+    camera_name): taking the first would silently calibrate with a guessed camera."""
+    chain = {"cam0": {**CHAIN["cam0"], "camera_name": "left"},
+             "cam1": {**CHAIN["cam1"], "camera_name": "left"}}
+    p = _write(tmp_path, chain)
+    with pytest.raises(SessionError, match=r"2 entries .*'cam0', 'cam1'.*'left'.*intrinsics_entry"):
+        load_intrinsics(p, "left")
+    assert load_intrinsics(p, "left", entry="cam1").fisheye
+    chain = {"cam0": {**CHAIN["cam0"], "rostopic": "/right/image_raw"}, "cam1": CHAIN["cam1"]}
+    with pytest.raises(SessionError, match="2 entries"):
+        load_intrinsics(_write(tmp_path, chain, "b.yaml"), "right")
+
+
+def test_no_camera_name_message_and_odd_names(tmp_path):
+    p = _write(tmp_path, CHAIN)
+    with pytest.raises(SessionError, match="holds 2 cameras") as e:
+        load_intrinsics(p)
+    assert "None" not in str(e.value)
+    one = {"cam0": {**CHAIN["cam1"], "camera_name": "a\nb\x1b[31m"}}
+    assert "\n" not in load_intrinsics(_write(tmp_path, one, "c.yaml")).name
+    tree = {"cam0": {**CHAIN["cam1"], "camera_name": {"x": [1, 2]}}}
+    assert load_intrinsics(_write(tmp_path, tree, "d.yaml")).name == "cam0"
+
+
+def test_absurd_resolution_is_a_short_message(tmp_path):
+    p = _write(tmp_path, {"cam0": {**CHAIN["cam1"], "resolution": [1e300, 600]}})
+    with pytest.raises(SessionError, match="not plausible") as e:
+        load_intrinsics(p)
+    assert len(str(e.value)) < len(str(p)) + 120

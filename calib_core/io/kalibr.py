@@ -15,6 +15,7 @@ import numpy as np
 
 from calib_core.camera import CameraModel
 from calib_core.errors import SessionError, short_repr
+from calib_core.markup import plain_line
 
 _DISTORTIONS = {"radtan": 4, "equidistant": 4, "none": 0}
 
@@ -37,19 +38,21 @@ def camera_from_camchain(path: Path, data: dict, camera: str | None = None, entr
         raise SessionError(path, f"{key}: Kalibr camera_model {short_repr(model)} is not supported (use pinhole "
                                  "with radtan or equidistant distortion)")
     dmodel = entry.get("distortion_model", "none")
-    if dmodel not in _DISTORTIONS:
+    if not isinstance(dmodel, str) or dmodel not in _DISTORTIONS:  # a list or mapping is unhashable
         raise SessionError(path, f"{key}: Kalibr distortion_model {short_repr(dmodel)} is not supported "
                                  "(use radtan, equidistant or none)")
     fu, fv, pu, pv = _numbers(path, entry, key, "intrinsics", 4)
-    w, h = (int(round(v)) for v in _numbers(path, entry, key, "resolution", 2))
+    wh = _numbers(path, entry, key, "resolution", 2)
     if not (fu > 0 and fv > 0):
-        raise SessionError(path, f"{key}: focal lengths must be positive (fu={fu}, fv={fv})")
-    if not (0 < w <= 100_000 and 0 < h <= 100_000):
-        raise SessionError(path, f"{key}: resolution {w} x {h} is not plausible (1 to 100000 pixels a side)")
+        raise SessionError(path, f"{key}: focal lengths must be positive (fu={fu:.6g}, fv={fv:.6g})")
+    if not np.all((wh >= 0.5) & (wh < 100_000.5)):  # before int(): 1e300 pixels is no message
+        raise SessionError(path, f"{key}: resolution {wh[0]:.6g} x {wh[1]:.6g} is not plausible "
+                                 "(1 to 100000 pixels a side)")
+    w, h = (int(round(v)) for v in wh)
     n = _DISTORTIONS[dmodel]
     coeffs = _numbers(path, entry, key, "distortion_coeffs", n) if n else np.zeros(0)
     K = np.array([[fu, 0.0, pu], [0.0, fv, pv], [0.0, 0.0, 1.0]])
-    name = str(entry.get("camera_name") or key)[:200]
+    name = plain_line(_text(entry.get("camera_name")) or str(key))[:200]
     if dmodel == "equidistant":
         return CameraModel(w, h, K, coeffs, name=name, fisheye=True)
     return CameraModel(w, h, K, np.r_[coeffs, 0.0] if n else np.zeros(5), name=name)
@@ -64,14 +67,27 @@ def _choose_entry(path: Path, data: dict, camera: str | None, entry: str | None)
         return entry
     if len(keys) == 1:
         return next(iter(data))
-    if camera is not None:
-        for k, v in data.items():
-            topic = str(v.get("rostopic") or "")
-            if str(v.get("camera_name") or "") == camera or camera in topic.strip("/").split("/"):
-                return k
+    said = "say which with the camera's 'intrinsics_entry: cam0' (say) in session.yaml"
+    if camera is None:
+        raise SessionError(path, f"Kalibr camchain holds {len(keys)} cameras ({listed}): {said}")
+    hits = [k for k, v in data.items() if _names(v, camera)]
+    if len(hits) > 1:  # two entries named alike: taking the first would be a guess
+        raise SessionError(path, f"Kalibr camchain: {len(hits)} entries ({', '.join(short_repr(str(k)) for k in hits[:8])})"
+                                 f" have the camera_name or a rostopic part {short_repr(camera)}: {said}")
+    if hits:
+        return hits[0]
     raise SessionError(path, f"Kalibr camchain holds {len(keys)} cameras ({listed}) and none has the camera_name "
-                             f"or a rostopic part {short_repr(camera)}: say which with the camera's "
-                             "'intrinsics_entry: cam0' (say) in session.yaml")
+                             f"or a rostopic part {short_repr(camera)}: {said}")
+
+
+def _text(value) -> str:
+    """A name read from the file as text ("" unless a string or a number: never str() of a tree)."""
+    return str(value) if isinstance(value, (str, int, float)) and not isinstance(value, bool) else ""
+
+
+def _names(v: dict, camera: str) -> bool:
+    """Does camchain entry ``v`` name ``camera`` (its camera_name, or an element of its rostopic)?"""
+    return _text(v.get("camera_name")) == camera or camera in _text(v.get("rostopic")).strip("/").split("/")
 
 
 def _numbers(path: Path, entry: dict, key: str, field: str, n: int) -> np.ndarray:
