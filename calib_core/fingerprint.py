@@ -42,7 +42,8 @@ def file_sha256(path: Path) -> str:
 # kept distortion term changes what the detectors see from the same file) and the session-level
 # second looks
 DETECTOR_SOURCES = ("detect/*.py", "pipeline.py", "disambiguate.py", "disambiguate_sonar.py", "camera.py",
-                    "io/images.py", "io/clouds.py", "io/intrinsics.py")
+                    "io/images.py", "io/clouds.py", "io/cloud_ascii.py", "io/cloud_binary.py", "io/off.py",
+                    "io/intrinsics.py", "io/kalibr.py")
 
 
 def source_digest(package_dir: Path) -> str:
