@@ -121,6 +121,35 @@ def project_cloud(points_sonar_m: np.ndarray, T_cam_sonar: np.ndarray, cam: Came
     return uv, z, valid
 
 
+def _distort32(x: np.ndarray, y: np.ndarray, cam: CameraModel) -> tuple[np.ndarray, np.ndarray]:
+    """Distorted normalised (xd, yd), float32, of normalised undistorted (x, y): the lens model
+    of ``cam`` (fisheye, or plumb_bob / rational), in place where it can for speed."""
+    f32 = np.float32
+    if cam.fisheye:
+        s = _fisheye_scale32(x, y, cam.dist)
+        return x * s, y * s
+    k1, k2, p1, p2, k3 = (f32(c) for c in cam.dist[:5])
+    r2 = x * x
+    r2 += y * y
+    radial = r2 * k3
+    radial += k2
+    radial *= r2
+    radial += k1
+    radial *= r2
+    radial += f32(1.0)
+    if cam.rational:
+        radial /= _rational_denominator(r2, cam.dist[5:])
+    xy2 = x * y
+    xy2 *= f32(2.0)
+    xd = x * radial
+    xd += p1 * xy2
+    xd += p2 * (r2 + f32(2.0) * x * x)
+    yd = y * radial
+    yd += p2 * xy2
+    yd += p1 * (r2 + f32(2.0) * y * y)
+    return xd, yd
+
+
 def _project(points_sonar_m, T_cam_sonar, cam: CameraModel, margin_px: float = 0.0):
     """float32 (u, v, z, valid, x, y): raw pixels, depth, validity, normalised undistorted coords."""
     P = np.ascontiguousarray(points_sonar_m, dtype=np.float64).reshape(-1, 1, 3)
@@ -135,34 +164,12 @@ def _project(points_sonar_m, T_cam_sonar, cam: CameraModel, margin_px: float = 0
         y = Pc[:, 1].astype(np.float32)
         y *= inv
         f32 = np.float32
-        ok = front
-        if cam.fisheye:
-            ok = ok & (x * x + y * y <= f32(min(_r2_limit(cam), 1e30)))
-            s = _fisheye_scale32(x, y, cam.dist)
-            xd, yd = x * s, y * s
-        elif np.any(cam.dist):
-            k1, k2, p1, p2, k3 = (f32(c) for c in cam.dist[:5])
-            r2 = x * x
-            r2 += y * y
-            ok = ok & (r2 <= f32(min(_r2_limit(cam), 1e30)))
-            radial = r2 * k3
-            radial += k2
-            radial *= r2
-            radial += k1
-            radial *= r2
-            radial += f32(1.0)
-            if cam.rational:
-                radial /= _rational_denominator(r2, cam.dist[5:])
-            xy2 = x * y
-            xy2 *= f32(2.0)
-            xd = x * radial
-            xd += p1 * xy2
-            xd += p2 * (r2 + f32(2.0) * x * x)
-            yd = y * radial
-            yd += p2 * xy2
-            yd += p1 * (r2 + f32(2.0) * y * y)
+        if cam.fisheye or np.any(cam.dist):
+            # points beyond the image's largest radius: refused before the polynomial can fold them back in
+            ok = front & (x * x + y * y <= f32(min(_r2_limit(cam), 1e30)))
+            xd, yd = _distort32(x, y, cam)
         else:
-            xd, yd = x, y
+            ok, xd, yd = front, x, y
         u = xd * f32(cam.fx)
         u += f32(cam.cx)
         if cam.K[0, 1] != 0:
