@@ -83,6 +83,13 @@ def test_round_trip_with_numpy_values_in_manifest_order(session):
     ({"p01": {"sonar": {"status": "auto", "center": [0, 0, 1], "other_candidates": [[0, 0, ".nan"]]}}},
      "other_candidates must be a list of rows"),
     ({"p01": {"cam1": {"status": "auto", "center": [1, 2], "score": "high"}}}, "score must be a number"),
+    # a hand-edited covariance reached the solver's reshape as a ValueError / TypeError
+    ({"p01": {"sonar": {"status": "accepted", "center": [0, 0, 1], "cov_m2": "abc"}}}, "cov_m2 must be a 3x3 matrix"),
+    ({"p01": {"sonar": {"status": "accepted", "center": [0, 0, 1], "cov_m2": [1, 2, 3]}}}, "cov_m2 must be a 3x3"),
+    ({"p01": {"sonar": {"status": "accepted", "center": [0, 0, 1], "cov_m2": [[1, 0, 0], [0, 1]]}}}, "cov_m2 must be"),
+    ({"p01": {"sonar": {"status": "accepted", "center": [0, 0, 1], "cov_m2": {"a": 1}}}}, "cov_m2 must be"),
+    ({"p01": {"cam1": {"status": "accepted", "center": [1, 2], "cov_px2": [1, 0, 0, "x"]}}}, "cov_px2 must be a 2x2"),
+    ({"p01": {"cam1": {"status": "accepted", "center": [1, 2], "cov_px2": [1, 0, 0, True]}}}, "cov_px2 must be"),
 ])
 def test_invalid_entries(session, captures, match):
     detections_path(session).write_text(yaml.safe_dump({"format": DETECTIONS_FORMAT, "captures": captures}))
@@ -100,6 +107,15 @@ def test_invalid_files(session, text, match):
     detections_path(session).write_text(text)
     with pytest.raises(SessionError, match=match):
         load_detections(session)
+
+
+def test_covariances_as_the_tools_and_people_write_them(session):
+    caps = {"p01": {"sonar": {"status": "accepted", "center": [0, 0, 1], "cov_m2": [[4e-6, 0, 0], [0, 4e-6, 0],
+                                                                                   [0, 0, "1e-5"]]},
+                    "cam1": {"status": "auto", "center": [1, 2], "cov_px2": [0.25, 0, 0, float("nan")]}}}
+    detections_path(session).write_text(yaml.safe_dump({"format": DETECTIONS_FORMAT, "captures": caps}))
+    d = load_detections(session)["p01"]
+    assert d["sonar"]["cov_m2"][2][2] == "1e-5" and np.isnan(d["cam1"]["cov_px2"][3])
 
 
 def test_merge_auto_never_overwrites_operator_entries():
