@@ -288,7 +288,8 @@ def to_camera_info(cam_model: CameraModel, name: str) -> str:
     from calib_core.io.intrinsics import camera_info_dict
 
     head = (f"# Intrinsics of camera '{plain_line(name)}' (ROS camera_info). Pixels of the raw image; frame:\n"
-            f"# the camera's optical frame (x right, y down, z forward). Distortion plumb_bob, OpenCV order.\n")
+            f"# the camera's optical frame (x right, y down, z forward). Distortion {cam_model.distortion_model}, "
+            "OpenCV order.\n")
     return head + yaml.safe_dump(camera_info_dict(cam_model, name), sort_keys=False, default_flow_style=None)
 
 

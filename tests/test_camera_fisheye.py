@@ -150,3 +150,12 @@ def test_vertical_field_of_view_for_any_lens():
     assert vertical_fov_rad(pin) == pytest.approx(2 * np.arctan(540 / 1000), abs=1e-3)
     fe = CameraModel(1920, 1080, [[500.0, 0, 960], [0, 500.0, 540], [0, 0, 1]], np.zeros(4), fisheye=True)
     assert vertical_fov_rad(fe) == pytest.approx(1080 / 500, abs=1e-3)  # r_d = f theta: 124 deg, not 94
+
+
+def test_camera_info_export_names_the_lens_model_it_writes():
+    """The header comment said plumb_bob above an equidistant (or rational) model."""
+    from calib_core.export import to_camera_info
+
+    text = to_camera_info(_cam(), "cam1")
+    assert yaml.safe_load(text)["distortion_model"] == "equidistant"
+    assert "plumb_bob" not in text and "Distortion equidistant" in text
