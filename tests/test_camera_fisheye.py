@@ -92,6 +92,20 @@ def test_camera_info_message_equidistant():
                                          width=1280, height=1024), "cam1")
 
 
+@pytest.mark.parametrize("model,d,match", [
+    ("equidistant", [0.1, float("nan"), 0, 0], "NaN or infinite"),   # was: "has 4 coefficients, got 4"
+    ("plumb_bob", [0.1, 0, 0, 0, float("inf")], "NaN or infinite"),  # was: accepted, NaN pixels later
+    ("rational_polynomial", list(range(1, 9)) + [0, 0, 0, 0.5], "8 coefficients, but 12"),  # was: 9-12 dropped
+    ("plumb_bob", [0.1, 0, 0, 0, 0, 0.2], "k4..k6"),
+])
+def test_camera_info_message_bad_coefficients(model, d, match):
+    from calib_core.ingest.rosmsg import camera_from_info
+
+    with pytest.raises(ValueError, match=match):
+        camera_from_info(SimpleNamespace(k=K.ravel(), d=np.array(d, float), distortion_model=model,
+                                         width=1280, height=1024), "cam1")
+
+
 def test_fused_cloud_projection_matches_the_model():
     from calib_core.fusion.cloud import _project
 

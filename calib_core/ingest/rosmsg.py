@@ -133,12 +133,14 @@ def camera_from_info(msg, name: str) -> CameraModel:
         raise ValueError(f"distortion model '{model}' is not supported (use plumb_bob, rational_polynomial or equidistant)")
     if not (np.isfinite(K).all() and K[0, 0] > 0 and K[1, 1] > 0 and msg.width > 0 and msg.height > 0):
         raise ValueError("CameraInfo holds no valid camera matrix (is the camera calibrated?)")
+    if not np.isfinite(D).all():
+        raise ValueError("CameraInfo's distortion coefficients hold NaN or infinite values")
+    n = 4 if model == "equidistant" else 8 if model == "rational_polynomial" else 5
+    if np.any(D[n:] != 0):
+        raise ValueError(f"{model or 'plumb_bob'} distortion has {n} coefficients, but {D.size} are given "
+                         f"and values {n + 1}-{D.size} are not zero" + (" (k4..k6: rational_polynomial?)" if n == 5 else ""))
     if model == "equidistant":
-        if np.any(D[4:] != 0) or not np.isfinite(D).all():
-            raise ValueError(f"equidistant distortion has 4 coefficients k1..k4, got {D.size}")
         return CameraModel(int(msg.width), int(msg.height), K, D[:4], name=name, fisheye=True)
-    if model != "rational_polynomial" and np.any(D[5:8] != 0):
-        raise ValueError("plumb_bob distortion has 5 coefficients, but k4..k6 are not zero (rational_polynomial?)")
     return CameraModel(int(msg.width), int(msg.height), K, D[:8], name=name)
 
 
