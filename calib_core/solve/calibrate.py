@@ -20,6 +20,7 @@ import numpy as np
 
 from calib_core import __version__
 from calib_core.errors import SessionError
+from calib_core.geometry import invert_T
 from calib_core.results import CALIBRATION_FORMAT
 from calib_core.solve.consistency import consistency, consistency_phrase, is_warning
 from calib_core.solve.stated import camera_data_from
@@ -27,7 +28,7 @@ from calib_core.solve.refine import ROBUST_LOSSES, Link
 from calib_core.solve.scale import (diameter_sigma, outline_sigma_px, range_model, range_rel_sigma, size_route_caution,
                                    stereo_limit_note)
 from calib_core.solve.shared_scale import shared_scale
-from calib_core.solve.rig import default_stereo_cov, find_stereo, solve_rig, table_i
+from calib_core.solve.rig import cov_of_inverse, default_stereo_cov, find_stereo, solve_rig, table_i
 from calib_core.solve.single import CameraSolution, solve_camera
 
 
@@ -98,20 +99,29 @@ def sigmas(cov6: np.ndarray) -> dict:
             "sigma_3": {"rotation_deg": 3 * r, "translation_mm": 3 * t}}
 
 
-def _stereo_cov(session, key: str) -> tuple[np.ndarray, bool]:
-    """Covariance of a stereo transform from session.yaml's optional ``stereo_covariance``
-    mapping (same keys as ``stereo``), else the assumed default. Returns (cov, assumed)."""
+def _stereo_cov(session, ref: str, cam: str, T_cam_ref: np.ndarray) -> tuple[np.ndarray, bool]:
+    """Covariance of the stereo transform ``T_cam_ref`` from session.yaml's optional
+    ``stereo_covariance`` mapping (same keys as ``stereo``; one stated for ``T_<ref>_<cam>`` is
+    carried over to the inverse), else the assumed default. Returns (cov, assumed)."""
     raw = (session.raw or {}).get("stereo_covariance") or {}
+    key, inverse = f"T_{cam}_{ref}", f"T_{ref}_{cam}"
+    if isinstance(raw, dict) and key not in raw and inverse in raw:
+        return cov_of_inverse(invert_T(T_cam_ref), _stated_stereo_cov(session, raw, inverse)), False
     if isinstance(raw, dict) and key in raw:
-        try:
-            C = np.asarray(raw[key], float).reshape(6, 6)
-        except (TypeError, ValueError):
-            raise SessionError(session.manifest_path, f"stereo_covariance.{key} must be a 6x6 matrix") from None
-        C = 0.5 * (C + C.T)
-        if not np.isfinite(C).all() or np.any(np.linalg.eigvalsh(C) <= 0):
-            raise SessionError(session.manifest_path, f"stereo_covariance.{key} must be positive definite")
-        return C, False
+        return _stated_stereo_cov(session, raw, key), False
     return default_stereo_cov(), True
+
+
+def _stated_stereo_cov(session, raw: dict, key: str) -> np.ndarray:
+    """stereo_covariance.<key> as a symmetric positive definite 6x6 (else one clear line)."""
+    try:
+        C = np.asarray(raw[key], float).reshape(6, 6)
+    except (TypeError, ValueError, OverflowError):
+        raise SessionError(session.manifest_path, f"stereo_covariance.{key} must be a 6x6 matrix") from None
+    C = 0.5 * (C + C.T)
+    if not np.isfinite(C).all() or np.any(np.linalg.eigvalsh(C) <= 0):
+        raise SessionError(session.manifest_path, f"stereo_covariance.{key} must be positive definite")
+    return C
 
 
 def _camera_entry(sol: CameraSolution, skipped: dict, intrinsics_rel: str) -> dict:
@@ -168,7 +178,7 @@ def _joint(session, sols, entries, opts, progress, warnings):
     for c in solved[1:]:
         T = find_stereo(session.stereo, ref, c)
         if T is not None:
-            cov, assumed = _stereo_cov(session, f"T_{c}_{ref}")
+            cov, assumed = _stereo_cov(session, ref, c, T)
             links[c] = Link(T, cov)
             stereo_info[c] = {"T_cam_ref": T, "covariance": cov, "covariance_assumed": assumed}
     if not links:

@@ -38,6 +38,19 @@ def default_stereo_cov() -> np.ndarray:
     return np.diag([DEFAULT_STEREO_SIGMA_RAD**2] * 3 + [DEFAULT_STEREO_SIGMA_M**2] * 3)
 
 
+def cov_of_inverse(T_a_b: np.ndarray, cov_ab: np.ndarray) -> np.ndarray:
+    """6x6 covariance of ``T_b_a`` from that of ``T_a_b`` (rotation vector rad, then translation m;
+    the solver's perturbation R' = exp(dr) R, t' = t + dt): dr' = -R^T dr, dt' = -R^T dt - R^T [t]x dr."""
+    R, t = np.asarray(T_a_b, float)[:3, :3], np.asarray(T_a_b, float)[:3, 3]
+    tx = np.array([[0.0, -t[2], t[1]], [t[2], 0.0, -t[0]], [-t[1], t[0], 0.0]])
+    J = np.zeros((6, 6))
+    J[:3, :3] = -R.T
+    J[3:, :3] = -R.T @ tx
+    J[3:, 3:] = -R.T
+    C = J @ np.asarray(cov_ab, float) @ J.T
+    return 0.5 * (C + C.T)
+
+
 @dataclass
 class RigSolution:
     """Joint calibration of several cameras to the sonar.
