@@ -27,12 +27,22 @@ def test_only_stated_covariances_are_scaled():
             "p2": {"sonar": {"center": [1, 0, 0]}},                       # none stated: assumed
             "p3": {"sonar": {"cov_m2": [0.0] * 9}},                        # not positive definite
             "p4": {"sonar": {"cov_m2": [float("nan")] * 9}}}
-    rows = stated_sonar_rows(dets, ["p1", "p2", "p3", "p4", "p5"])
-    assert rows.tolist() == [True, False, False, False, False]
+    dets["p6"] = {"sonar": refit_sonar_click_entry()}  # an operator's pick no refit confirmed: assumed
+    rows = stated_sonar_rows(dets, ["p1", "p2", "p3", "p4", "p5", "p6"])
+    assert rows.tolist() == [True, False, False, False, False, False]
     C = np.stack([np.eye(3) * 1e-6, np.eye(3) * 4e-6])
     out = solver_sonar_cov(C, np.array([True, False]))
     assert np.allclose(out[0], C[0] * SONAR_CENTRE_VARIANCE_FACTOR) and np.allclose(out[1], C[1])
     assert np.allclose(C[0], np.eye(3) * 1e-6)  # the input is not changed
+
+
+def refit_sonar_click_entry() -> dict:
+    """The entry :func:`calib_core.pipeline.refit_sonar` writes when its refit fails (no cloud here)."""
+    from calib_core.pipeline import PICK_SIGMA_SONAR_M
+
+    s2 = PICK_SIGMA_SONAR_M**2
+    return {"status": "corrected", "center": [1.0, 0.0, 2.0], "method": "operator-pick", "refit": False,
+            "cov_m2": [s2, 0, 0, 0, s2, 0, 0, 0, s2]}
 
 
 def _one_camera(tmp_path, rig, drop_cov=False):

@@ -27,9 +27,14 @@ from calib_core.solve.model import CameraData, camera_data
 SONAR_CENTRE_VARIANCE_FACTOR = 1.5
 
 
+# entries whose covariance is the tools' assumption, not a fit's statement (an operator's pick
+# that no refit confirmed carries PICK_SIGMA_SONAR_M): left as assumed
+ASSUMED_METHODS = ("operator-pick",)
+
+
 def _has_stated_cov(entry) -> bool:
     c = (entry or {}).get("cov_m2")
-    if c is None:
+    if c is None or (entry or {}).get("method") in ASSUMED_METHODS:
         return False
     C = np.asarray(c, float)
     if C.size != 9 or not np.isfinite(C).all():
