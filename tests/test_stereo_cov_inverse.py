@@ -10,9 +10,14 @@ from calib_core.detections import load_detections
 from calib_core.geometry import invert_T
 from calib_core.session import load_session
 from calib_core.solve.calibrate import calibrate_session
-from calib_core.solve.rig import cov_of_inverse
+from calib_core.solve.rig import cov_of_inverse, default_stereo_cov
 from calib_core.solve.simulate import synthetic_rig
 from tests.test_solve_calibrate import write_session
+
+
+def _perturbed(T, d):
+    """(R (n,3,3), t (n,3)) of T under the solver's perturbations d (n,6): R' = exp(dr) R, t' = t + dt."""
+    return Rotation.from_rotvec(d[:, :3]).as_matrix() @ T[:3, :3], T[:3, 3] + d[:, 3:]
 
 
 def test_cov_of_inverse_matches_monte_carlo():
@@ -24,14 +29,10 @@ def test_cov_of_inverse_matches_monte_carlo():
     C = A @ A.T + np.diag([1e-7] * 6)
     Ti = invert_T(T)
     d = rng.multivariate_normal(np.zeros(6), C, 100_000)
-    out = np.empty_like(d)
-    for k, (dr, dt) in enumerate(zip(d[:, :3], d[:, 3:])):  # the solver's perturbation of T, then its inverse
-        Tp = np.eye(4)
-        Tp[:3, :3] = Rotation.from_rotvec(dr).as_matrix() @ T[:3, :3]
-        Tp[:3, 3] = T[:3, 3] + dt
-        Tpi = invert_T(Tp)
-        out[k, :3] = Rotation.from_matrix(Tpi[:3, :3] @ Ti[:3, :3].T).as_rotvec()
-        out[k, 3:] = Tpi[:3, 3] - Ti[:3, 3]
+    R, t = _perturbed(T, d)  # the solver's perturbation of T, then its inverse
+    Ri = np.transpose(R, (0, 2, 1))
+    ti = -np.einsum("nij,nj->ni", Ri, t)
+    out = np.hstack([Rotation.from_matrix(Ri @ Ti[:3, :3].T).as_rotvec(), ti - Ti[:3, 3]])
     emp = np.cov(out.T)
     got = cov_of_inverse(T, C)
     sig = np.sqrt(np.diag(got))
@@ -54,3 +55,53 @@ def test_covariance_stated_for_the_inverse_key_is_used(tmp_path):
     assert info["covariance_assumed"] is False
     assert not any("no stereo_covariance" in w for w in cal["warnings"])
     assert np.allclose(np.asarray(info["covariance"], float), cov_of_inverse(T12, C12))
+
+
+
+
+def test_cov_of_product_matches_monte_carlo():
+    from calib_core.solve.rig import cov_of_product
+
+    rng = np.random.default_rng(5)
+    A, B = np.eye(4), np.eye(4)
+    A[:3, :3], A[:3, 3] = Rotation.from_rotvec([0.1, 0.4, -0.2]).as_matrix(), [0.3, 0.05, -0.1]
+    B[:3, :3], B[:3, 3] = Rotation.from_rotvec([-0.2, 0.1, 0.3]).as_matrix(), [-0.7, 0.2, 0.4]
+    CA = np.diag([1e-6, 2e-6, 1e-6, 4e-6, 1e-6, 9e-6])
+    CB = np.diag([3e-6, 1e-6, 2e-6, 1e-6, 5e-6, 2e-6])
+    T0 = A @ B
+    n = 100_000
+    (Ra, ta), (Rb, tb) = _perturbed(A, rng.multivariate_normal(np.zeros(6), CA, n)), \
+        _perturbed(B, rng.multivariate_normal(np.zeros(6), CB, n))
+    out = np.hstack([Rotation.from_matrix(Ra @ Rb @ T0[:3, :3].T).as_rotvec(),
+                     np.einsum("nij,nj->ni", Ra, tb) + ta - T0[:3, 3]])
+    got = cov_of_product(A, B, CA, CB)
+    sig = np.sqrt(np.diag(got))
+    assert np.abs((np.cov(out.T) - got) / np.outer(sig, sig)).max() < 0.03
+    assert not np.allclose(got, CA + CB, rtol=0.1)
+
+
+def test_a_camera_tied_through_an_unsolved_one_joins_the_joint_solve(tmp_path):
+    """Three cameras tied to cam1 by stereo transforms, cam1 without usable captures: cam2 and cam3
+    were solved independently (no stereo key for the pair); here "hub" plays cam1's part."""
+    from calib_core.io.intrinsics import save_intrinsics_ros
+    from calib_core.solve.rig import cov_of_product
+
+    rig = synthetic_rig(31, n_captures=8, sigma_px=0.3, sigma_m=0.003)
+    root = write_session(tmp_path / "s", rig)
+    save_intrinsics_ros(root / "intrinsics" / "hub.yaml", rig.cameras["cam1"], "hub")
+    man = yaml.safe_load((root / "session.yaml").read_text())
+    man["cameras"] = {"hub": {"intrinsics": "intrinsics/hub.yaml"}, **man["cameras"]}  # first, and never imaged
+    H = np.eye(4)
+    H[:3, :3], H[:3, 3] = Rotation.from_rotvec([0.0, 0.05, 0.01]).as_matrix(), [0.0, -0.3, 0.02]  # T_hub_cam1
+    man["stereo"] = {"T_cam1_hub": invert_T(H).tolist(), "T_cam2_hub": (rig.T_cam2_cam1 @ invert_T(H)).tolist()}
+    (root / "session.yaml").write_text(yaml.safe_dump(man, sort_keys=False))
+    s = load_session(root)
+    cal = calibrate_session(s, load_detections(s), {"detect": False, "leave_one_out": False})
+    assert cal["joint"] is not None and cal["joint"]["reference"] == "cam1"
+    info = cal["joint"]["stereo"]["cam2"]
+    assert info["via"] == "hub"
+    assert np.allclose(np.asarray(info["T_cam_ref"], float), rig.T_cam2_cam1, atol=1e-9)
+    C = default_stereo_cov()  # none stated: assumed for both factors
+    want = cov_of_product(rig.T_cam2_cam1 @ invert_T(H), H, C, C)
+    assert np.allclose(np.asarray(info["covariance"], float), want)
+    assert cal["cameras"]["cam2"]["solution"] == "joint"

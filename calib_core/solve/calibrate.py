@@ -28,7 +28,7 @@ from calib_core.solve.refine import ROBUST_LOSSES, Link
 from calib_core.solve.scale import (diameter_sigma, outline_sigma_px, range_model, range_rel_sigma, size_route_caution,
                                    stereo_limit_note)
 from calib_core.solve.shared_scale import shared_scale
-from calib_core.solve.rig import cov_of_inverse, default_stereo_cov, find_stereo, solve_rig, table_i
+from calib_core.solve.rig import cov_of_inverse, cov_of_product, default_stereo_cov, find_stereo, solve_rig, table_i
 from calib_core.solve.single import CameraSolution, solve_camera
 
 
@@ -112,6 +112,22 @@ def _stereo_cov(session, ref: str, cam: str, T_cam_ref: np.ndarray) -> tuple[np.
     return default_stereo_cov(), True
 
 
+def _stereo_link(session, ref: str, cam: str):
+    """(T_cam_ref, covariance, assumed, via) from session.yaml's stereo transforms: stated for the
+    pair (via None), else chained through one other camera ``via`` (a third camera tied to cam1
+    when cam1 itself could not be solved); None when neither."""
+    T = find_stereo(session.stereo, ref, cam)
+    if T is not None:
+        return (T, *_stereo_cov(session, ref, cam, T), None)
+    for mid in session.cameras:
+        A, B = find_stereo(session.stereo, mid, cam), find_stereo(session.stereo, ref, mid)
+        if mid in (ref, cam) or A is None or B is None:
+            continue
+        (cov_a, assumed_a), (cov_b, assumed_b) = _stereo_cov(session, mid, cam, A), _stereo_cov(session, ref, mid, B)
+        return A @ B, cov_of_product(A, B, cov_a, cov_b), assumed_a or assumed_b, mid
+    return None
+
+
 def _stated_stereo_cov(session, raw: dict, key: str) -> np.ndarray:
     """stereo_covariance.<key> as a symmetric positive definite 6x6 (else one clear line)."""
     try:
@@ -176,11 +192,12 @@ def _joint(session, sols, entries, opts, progress, warnings):
     ref = solved[0]
     links, stereo_info = {}, {}
     for c in solved[1:]:
-        T = find_stereo(session.stereo, ref, c)
-        if T is not None:
-            cov, assumed = _stereo_cov(session, ref, c, T)
+        link = _stereo_link(session, ref, c)
+        if link is not None:
+            T, cov, assumed, via = link
             links[c] = Link(T, cov)
-            stereo_info[c] = {"T_cam_ref": T, "covariance": cov, "covariance_assumed": assumed}
+            stereo_info[c] = {"T_cam_ref": T, "covariance": cov, "covariance_assumed": assumed,
+                              **({"via": via} if via else {})}
     if not links:
         return None, None
     if progress:

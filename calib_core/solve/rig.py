@@ -140,6 +140,19 @@ def stereo_share_of_scale(problem: RigProblem, state: RigState, robust: str | No
     return float(np.clip(1.0 - var[1] / var[0], 0.0, 1.0)) if var[0] > 0 else 0.0
 
 
+def cov_of_product(T_a_b: np.ndarray, T_b_c: np.ndarray, cov_ab: np.ndarray, cov_bc: np.ndarray) -> np.ndarray:
+    """6x6 covariance of ``T_a_c = T_a_b T_b_c`` from those of two independent factors (rotation
+    vector rad, then translation m; perturbation R' = exp(dr) R, t' = t + dt):
+    dr = dr_ab + R_ab dr_bc, dt = dt_ab - [R_ab t_bc]x dr_ab + R_ab dt_bc."""
+    R, u = np.asarray(T_a_b, float)[:3, :3], np.asarray(T_a_b, float)[:3, :3] @ np.asarray(T_b_c, float)[:3, 3]
+    ux = np.array([[0.0, -u[2], u[1]], [u[2], 0.0, -u[0]], [-u[1], u[0], 0.0]])
+    Ja, Jb = np.eye(6), np.zeros((6, 6))
+    Ja[3:, :3] = -ux
+    Jb[:3, :3] = Jb[3:, 3:] = R
+    C = Ja @ np.asarray(cov_ab, float) @ Ja.T + Jb @ np.asarray(cov_bc, float) @ Jb.T
+    return 0.5 * (C + C.T)
+
+
 def find_stereo(stereo: dict, a: str, b: str) -> np.ndarray | None:
     """``T_b_a`` from a dict of stereo transforms keyed ``T_<target>_<source>`` (inverting if needed)."""
     if f"T_{b}_{a}" in stereo:
