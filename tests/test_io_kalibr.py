@@ -131,3 +131,39 @@ def test_absurd_resolution_is_a_short_message(tmp_path):
     with pytest.raises(SessionError, match="not plausible") as e:
         load_intrinsics(p)
     assert len(str(e.value)) < len(str(p)) + 120
+
+
+def test_the_chosen_entry_is_part_of_an_image_detection_fingerprint(tmp_path):
+    """Pointing a camera at another camchain entry changes its intrinsics without changing a file:
+    old auto entries must not match."""
+    from calib_core import fingerprint as fpm
+    from calib_core.pipeline import SessionData, detection_inputs
+    from calib_core.session import load_session
+
+    (tmp_path / "calib").mkdir()
+    _write(tmp_path / "calib", CHAIN)
+    (tmp_path / "a.png").write_bytes(b"x")
+    man = {"format": "sonar-camera-session/1", "name": "k", "sphere": {"diameter": 0.3},
+           "cameras": {"cam1": {"intrinsics": "calib/camchain.yaml", "intrinsics_entry": "cam0"}},
+           "captures": [{"id": "p01", "cloud": "c.ply", "images": {"cam1": "a.png"}}]}
+    digests = []
+    for entry in ("cam0", "cam1"):
+        man["cameras"]["cam1"]["intrinsics_entry"] = entry
+        (tmp_path / "session.yaml").write_text(yaml.safe_dump(man))
+        paths, params = detection_inputs(SessionData(load_session(tmp_path)), "p01", "cam1")
+        digests.append(fpm.fingerprint(tmp_path, paths, params)["digest"])
+    assert digests[0] != digests[1]
+
+
+@pytest.mark.parametrize("value", [5, "", "a\nb", "x" * 65, ["cam0"]])
+def test_session_refuses_an_odd_intrinsics_entry(tmp_path, value):
+    from calib_core.session import load_session
+
+    (tmp_path / "calib").mkdir()
+    _write(tmp_path / "calib", CHAIN)
+    (tmp_path / "session.yaml").write_text(yaml.safe_dump({
+        "format": "sonar-camera-session/1", "name": "k", "sphere": {"diameter": 0.3},
+        "cameras": {"cam1": {"intrinsics": "calib/camchain.yaml", "intrinsics_entry": value}},
+        "captures": [{"id": "p01", "cloud": "c.ply", "images": {"cam1": "a.png"}}]}))
+    with pytest.raises(SessionError, match="intrinsics_entry must be a short name"):
+        load_session(tmp_path)
