@@ -374,12 +374,21 @@ def _pass2(cam, sig, fit1: ConeFit, R: float, a_range_rad, rng):
     for s in BLUR_SCALES_PX:
         if best is not None and best[0].sigma_px <= outline_rms_limit_px(R, _median_width(best)):
             break
-        if s > BLUR_MAX_RADIUS_FRACTION * R:
-            break  # (a smear wider than a quarter of the radius is a streak: see outline_rms_limit_px)
+        if R < SMALL_RADIUS_PX or 2.3548 * s > BLUR_MAX_RADIUS_FRACTION * R:
+            break  # (no smear on a small blob, none wider than a quarter radius: as outline_rms_limit_px)
         alt = _pass2_reading(cam, sig, fit1, R, a_range_rad, np.random.default_rng(k2), geo, half + 3.0 * s, s)
-        if alt is not None and (best is None or _quality(alt[0]) > _quality(best[0])):
+        if alt is not None and _smoothed_held(alt, R) and (best is None or _quality(alt[0]) > _quality(best[0])):
             best = alt
     return best
+
+
+def _smoothed_held(p2, R: float) -> bool:
+    """A smoothed reading's fit held to the tight refit's standard (smoothing makes any blob of
+    texture rounder; like the several reading it is searched for): TIGHT_MIN_SUPPORT of the
+    normals, edge RMS within TIGHT_RMS_FRACTION of the roundness limit of its edge width."""
+    fit, _, _, k2, _ = p2
+    return (fit.inliers.sum() >= TIGHT_MIN_SUPPORT * k2
+            and fit.sigma_px <= TIGHT_RMS_FRACTION * outline_rms_limit_px(R, _median_width(p2)))
 
 
 # smoothing (px, Gaussian sigma along the normal) of the profiles read again when the outline is
