@@ -385,9 +385,12 @@ def _pass2(cam, sig, fit1: ConeFit, R: float, a_range_rad, rng):
 def _smoothed_held(p2, R: float) -> bool:
     """A smoothed reading's fit held to the tight refit's standard (smoothing makes any blob of
     texture rounder; like the several reading it is searched for): TIGHT_MIN_SUPPORT of the
-    normals, edge RMS within TIGHT_RMS_FRACTION of the roundness limit of its edge width."""
+    normals, edge RMS within TIGHT_RMS_FRACTION of the roundness limit of its edge width; and
+    that width a smear's, not wider than a quarter of the radius (beyond: a streak, a shaded
+    patch)."""
     fit, _, _, k2, _ = p2
     return (fit.inliers.sum() >= TIGHT_MIN_SUPPORT * k2
+            and _median_width(p2) <= BLUR_MAX_RADIUS_FRACTION * R
             and fit.sigma_px <= TIGHT_RMS_FRACTION * outline_rms_limit_px(R, _median_width(p2)))
 
 
