@@ -58,6 +58,8 @@ class Resolution:
     sigma_px: {capture_id: px} for a registration on exactly 3 plain detections: how far its
         projection of that capture's sonar centre moves when each plain detection's range is off
         by RANGE_REL_SIGMA (root sum of squares), for the checks and the predicted places.
+    rough_agree: rough candidates (partly hidden outlines) within the 3D tolerance of the
+        registration: captures that agree with it without counting as ``support``.
     """
 
     chosen: dict = field(default_factory=dict)
@@ -68,6 +70,7 @@ class Resolution:
     range_rel_rms: float = float("nan")
     checks_px: dict = field(default_factory=dict)
     sigma_px: dict = field(default_factory=dict)
+    rough_agree: int = 0
 
 
 def resolve_candidates(cam: CameraModel, centers_sonar_m: dict[str, np.ndarray],
@@ -105,6 +108,7 @@ def resolve_candidates(cam: CameraModel, centers_sonar_m: dict[str, np.ndarray],
     best_T, checks_px = _checked_on_three(cam, best_T, plain, [c for c in ids if c in set(rough)], X, P, tol, candidates)
     out = Resolution(T_cam_sonar=best_T, checks_px=checks_px)
     _agreement(out, cam, plain, X, P, tol, candidates)
+    out.rough_agree = len(_single_inliers(best_T, [c for c in ids if c in set(rough)], X, P, tol))
     for c in ids:
         _decide(out, cam, c, best_T[:3, :3] @ X[c] + best_T[:3, 3], P[c], tol[c])
     for c in predict_for:
