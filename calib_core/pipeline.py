@@ -183,10 +183,12 @@ def _resolve_round(data: SessionData, detections: dict, cam: str, only: set) -> 
     from calib_core.disambiguate import resolve_candidates
 
     centers, cands, missing = _registration_inputs(detections, cam, only)
+    range_free = [c for c in cands if not range_is_measured(detections[c][cam])]
     if not any(cid in only for cid in cands) and not missing:
         return {}
     model = data.camera(cam)
-    res = resolve_candidates(model, centers, cands, predict_for=missing, rough=[c for c in missing if c in cands])
+    res = resolve_candidates(model, centers, cands, predict_for=missing, rough=[c for c in missing if c in cands],
+                             range_free=range_free)
     out = {}
     for cid, ((u, v, rng_m), why) in _looks(res, cands, missing, detections, cam, only).items():
         radius_px = model.fx * data.session.sphere_radius_m / max(rng_m, 1e-6)

@@ -270,3 +270,32 @@ def test_partly_hidden_outlines_that_agree_count_for_the_registration():
         cands[c] = np.array([[uv[i][0] + 200.0, uv[i][1], rng_m[i] * 0.7]])
     res = resolve_candidates(cam, dict(zip(ids, X_sonar)), cands, predict_for=[*rough, "p7"], rough=rough)
     assert res.rough_agree == 0 and not _trusted(res, len(cands), "p7")
+
+
+def test_a_looks_range_is_left_out_of_the_agreement():
+    """A look at the predicted place takes the predicted size, so its range follows the registration
+    that predicted it: only its uv is evidence. Looks whose uv is right agree by their ray even
+    when their range followed a prediction 8 % off, and do not enter the range RMS; a look whose
+    uv is off does not agree, whatever its range."""
+    from calib_core.pipeline import _trusted
+
+    rng = np.random.default_rng(12)
+    cam, X_cam, X_sonar, uv, rng_m = _registration_case(9, rng)
+    ids = [f"p{i}" for i in range(9)]
+    cands = {c: np.array([[*(uv[i] + rng.normal(0, 0.3, 2)), rng_m[i] * (1 + rng.normal(0, 0.005))]])
+             for i, c in enumerate(ids)}
+    looks = ids[4:8]
+    for i, c in enumerate(looks, start=4):  # uv right, range from a prediction 8 % off
+        cands[c][0, 2] = rng_m[i] * 1.08
+    cands["p8"] = np.array([[uv[8][0] + 100.0, uv[8][1], rng_m[8]]])  # uv off, range right
+    centres = dict(zip(ids, X_sonar))
+    before = resolve_candidates(cam, centres, cands)
+    res = resolve_candidates(cam, centres, cands, range_free=[*looks, "p8"])
+    # before: the followed ranges bent the refit (7 px RMS on the plain detections) and its prediction
+    bu, bv, _ = before.predicted_uvr["p8"]
+    assert before.residual_px > 3.0 and np.hypot(bu - uv[8][0], bv - uv[8][1]) > 3.0
+    assert res.support == 8 and "p8" in res.predicted_uvr and res.residual_px < 1.0
+    assert res.range_rel_rms < 0.01  # over the 4 measured ranges only
+    assert _trusted(res, len(cands), "p8")
+    u, v, _ = res.predicted_uvr["p8"]
+    assert np.hypot(u - uv[8][0], v - uv[8][1]) < 2.0
