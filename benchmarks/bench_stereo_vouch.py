@@ -11,6 +11,11 @@ runs. Counted against the truth:
 - the chi-square of every right plain detection against its prediction (2 degrees of freedom if
   the stated uncertainty is right: median 1.39, 95th percentile 5.99).
 
+Second table, the look (one trial per session): 2 of cam2's right plain detections made wrong as above and
+2 others made "no round outline", so cam2 cannot predict on its own; after the refusals cam2's
+second look runs (:func:`calib_core.pipeline._resolve_ambiguous_images` with the stereo
+predictions): entries found by the look at the stereo-carried prediction, right / wrong.
+
 Run: .venv/bin/python benchmarks/bench_stereo_vouch.py [--presets gym] [--seeds 41-50] [--trials 10]
 """
 
@@ -68,6 +73,8 @@ def run_session(root: Path, trials: int, rng, st: dict) -> None:
             if _right(e, truth[cid][cam]):
                 st["chi2"].append(vouch_chi2(p, e["center"], e.get("cov_px2")))
     plain = [cid for cid in dets if _right(dets[cid].get("cam2") or {}, truth[cid]["cam2"])]
+    if len(plain) >= 4:
+        look_trial(data, dets, truth, plain, rng, st)
     for _ in range(trials if len(plain) >= 3 else 0):
         trial = copy.deepcopy(dets)
         bad = list(rng.choice(plain, 2, replace=False))
@@ -85,6 +92,33 @@ def run_session(root: Path, trials: int, rng, st: dict) -> None:
         st["right_checked"] += sum(1 for cid in plain if cid not in bad)
 
 
+def look_trial(data, dets: dict, truth: dict, plain: list, rng, st: dict) -> None:
+    """One trial of the second table (see the module docstring), into ``st``."""
+    from calib_core.detections import merge_auto
+
+    trial = copy.deepcopy(dets)
+    pick = list(rng.choice(plain, 4, replace=False))
+    for cid in pick[:2]:
+        a, r = rng.uniform(0, 2 * np.pi), rng.uniform(15, 150)
+        trial[cid]["cam2"]["center"] = (np.asarray(trial[cid]["cam2"]["center"], float)
+                                        + r * np.array([np.cos(a), np.sin(a)])).tolist()
+    for cid in pick[2:]:
+        trial[cid]["cam2"] = {"status": "auto", "reason": "no round outline"}
+    only = set(trial)
+    refused = pipeline._stereo_refusals(data, trial, only)
+    merged = merge_auto(trial, {c: {cam: e} for (c, cam), e in refused.items()})
+    preds = pipeline._stereo_predictions(data, merged, only).get("cam2")
+    out = pipeline._resolve_ambiguous_images(data, merged, "cam2", only, preds)
+    st["look_trials"] += 1
+    for cid, e in out.items():
+        if "stereo transform" in (e.get("resolved_by") or ""):
+            ok = _right(e, truth[cid]["cam2"])
+            st["look_right"] += bool(ok)
+            st["look_wrong"] += ok is False
+    st["look_targets"] += sum(1 for cid in dets if (merged[cid].get("cam2") or {}).get("center") is None
+                              and truth[cid]["cam2"].get("visible"))
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--presets", nargs="+", default=["gym"])
@@ -94,6 +128,7 @@ def main(argv=None) -> int:
     ap.add_argument("--cache", default="/tmp/sonarcal-image-sessions")
     args = ap.parse_args(argv)
     rng = np.random.default_rng(0)
+    looks = []
     print(f"Stereo vouching: 2 of cam2's right plain detections moved 15-150 px, {args.trials} trials per session; "
           f"test chi2 > {VOUCH_CHI2:.1f} (false-alarm rate {VOUCH_FALSE_ALARM:g})")
     print("| preset | seeds | trials | trials where a camera vouched for cam2 | injected wrong refused | "
@@ -102,7 +137,7 @@ def main(argv=None) -> int:
     print("|---|---|---|---|---|---|---|---|")
     for preset in args.presets:
         st = {"trials": 0, "vouched": 0, "injected": 0, "injected_refused": 0, "right_refused": 0, "right_checked": 0,
-              "chi2": []}
+              "chi2": [], "look_trials": 0, "look_right": 0, "look_wrong": 0, "look_targets": 0}
         seeds = parse_seeds(args.seeds)
         for seed in seeds:
             run_session(session_dir(Path(args.cache), preset, seed, args.scale), args.trials, rng, st)
@@ -110,6 +145,13 @@ def main(argv=None) -> int:
         print(f"| {preset} | {args.seeds} | {st['trials']} | {st['vouched']} | {st['injected_refused']} / {st['injected']} "
               f"| {st['right_refused']} / {st['right_checked']} | {len(st['chi2'])}, {np.median(c):.2f} / "
               f"{np.percentile(c, 95):.2f} / {np.max(c):.2f} | {int(np.sum(c > VOUCH_CHI2))} |", flush=True)
+        looks.append(f"| {preset} | {args.seeds} | {st['look_trials']} | {st['look_targets']} | {st['look_right']} "
+                     f"| {st['look_wrong']} |")
+    print("\nThe look at the stereo-carried prediction (2 wrong + 2 lost of cam2's plain detections, one trial per session)")
+    print("| preset | seeds | trials | visible balls of cam2 without a centre after the refusals | found right by the stereo look "
+          "| found wrong |")
+    print("|---|---|---|---|---|---|")
+    print("\n".join(looks))
     return 0
 
 
