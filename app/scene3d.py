@@ -13,6 +13,7 @@ import cv2
 import numpy as np
 
 from app.common import guarded, pose_wxyz_position
+from calib_core.camera import vertical_fov_rad
 
 STATUS_RGB = {"auto": (240, 200, 0), "accepted": (30, 190, 60), "corrected": (40, 120, 255), "rejected": (220, 40, 40)}
 CAM_RGB = [(255, 120, 0), (0, 170, 170), (150, 60, 220), (120, 120, 0)]
@@ -276,7 +277,7 @@ class Scene3D:
             T_w = camera_pose_in_cloud_frame(T, s)
             wxyz, pos = pose_wxyz_position(T_w)
             model = self.wb.state.camera(cam) if cam in self.wb.state.session.cameras else None
-            fov = 2 * np.arctan(model.height_px / (2 * model.fy)) if model else 0.8
+            fov = vertical_fov_rad(model) if model else 0.8
             aspect = model.width_px / model.height_px if model else 1.5
             sc.add_camera_frustum(f"/gt/{cam}", fov=fov, aspect=aspect, scale=0.12, color=GT_RGB, wxyz=wxyz,
                                   thickness=2.0, thickness_units="screen",
@@ -300,7 +301,7 @@ class Scene3D:
             frame.wxyz, frame.position, frame.visible = wxyz, pos, self.show_cams.value
             calibrated = st.T_cam_sonar(cam) is not None
             self.frustums[cam] = sc.add_camera_frustum(
-                f"/cams/{cam}/frustum", fov=2 * np.arctan(model.height_px / (2 * model.fy)),
+                f"/cams/{cam}/frustum", fov=vertical_fov_rad(model),
                 aspect=model.width_px / model.height_px, scale=0.15, thickness=2.0, thickness_units="screen",
                 color=CAM_RGB[k % len(CAM_RGB)] if calibrated else (150, 150, 150))
             sc.add_label(f"/cams/{cam}/label", cam if calibrated else f"{cam} (uncalibrated)")

@@ -1,6 +1,9 @@
-"""Camera model of the paper (eqs. 1-9): pinhole + plumb_bob distortion, or OpenCV's
+"""Camera model of the paper (eqs. 1-9): pinhole + plumb_bob distortion, OpenCV's
 rational model (ROS ``rational_polynomial``: k4..k6 divide the radial polynomial), which
-depth cameras such as the Azure Kinect publish.
+depth cameras such as the Azure Kinect publish, or OpenCV's fisheye model (ROS and Kalibr
+``equidistant``: the distorted radius is a polynomial in the angle off the axis,
+theta_d = theta (1 + k1 theta^2 + k2 theta^4 + k3 theta^6 + k4 theta^8)), which wide-angle
+and dome-port cameras are calibrated with.
 
 Frames: points in the camera frame follow OpenCV (x right, y down, z forward), metres.
 ``xy`` are normalised undistorted coordinates (the paper's x', y'), ``uv_px`` raw
@@ -24,8 +27,10 @@ class CameraModel:
         width_px, height_px: image size.
         K: 3x3 camera matrix [[fx, 0, cx], [0, fy, cy], [0, 0, 1]] in pixels.
         dist: (k1, k2, p1, p2, k3), OpenCV order; or (k1, k2, p1, p2, k3, k4, k5, k6) for
-            the rational model, kept only when k4..k6 are not all zero.
+            the rational model, kept only when k4..k6 are not all zero; or (k1, k2, k3, k4)
+            of the fisheye model when ``fisheye``.
         name: camera name (free text).
+        fisheye: OpenCV's fisheye (equidistant) model instead of plumb_bob / rational.
     """
 
     width_px: int
@@ -33,18 +38,44 @@ class CameraModel:
     K: np.ndarray
     dist: np.ndarray = field(default_factory=lambda: np.zeros(5))
     name: str = ""
+    fisheye: bool = False
 
     def __post_init__(self):
         object.__setattr__(self, "K", np.asarray(self.K, dtype=float).reshape(3, 3))
         dd = np.asarray(self.dist, dtype=float).ravel()
-        d = np.zeros(8 if np.any(dd[5:8] != 0) else 5)
+        if self.fisheye:
+            d = np.zeros(4)
+        else:
+            d = np.zeros(8 if np.any(dd[5:8] != 0) else 5)
         d[: min(d.size, dd.size)] = dd[: d.size]
         object.__setattr__(self, "dist", d)
+        object.__setattr__(self, "fisheye", bool(self.fisheye))
+
+    @property
+    def distortion_model(self) -> str:
+        """The ROS name of the lens model: plumb_bob, rational_polynomial or equidistant."""
+        return "equidistant" if self.fisheye else "rational_polynomial" if self.rational else "plumb_bob"
 
     @property
     def rational(self) -> bool:
         """True for OpenCV's rational model (8 coefficients, k4..k6 not all zero)."""
-        return self.dist.size == 8
+        return self.dist.size == 8 and not self.fisheye
+
+    def _fisheye_scale(self, r: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Fisheye: s(r) = theta_d / r for the undistorted radius r = |xy|, and s'(r) / r
+        (both finite at r = 0, from their series there)."""
+        k1, k2, k3, k4 = self.dist
+        th = np.arctan(r)
+        t2 = th * th
+        poly = 1 + t2 * (k1 + t2 * (k2 + t2 * (k3 + t2 * k4)))
+        dpoly = 1 + t2 * (3 * k1 + t2 * (5 * k2 + t2 * (7 * k3 + t2 * 9 * k4)))  # d(theta_d)/d theta
+        small = r < 1e-6
+        rs = np.where(small, 1.0, r)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            s = np.where(small, 1.0, th * poly / rs)
+            ds_over_r = (dpoly / (1 + rs * rs) * rs - th * poly) / rs**3
+        # series at r -> 0: s = 1 + (k1 - 1/3) r^2 + ..., so s'(r)/r -> 2 (k1 - 1/3)
+        return s, np.where(small, 2 * (k1 - 1.0 / 3.0), ds_over_r)
 
     def _radial(self, r2: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Radial factor and its derivative with respect to r^2."""
@@ -80,11 +111,15 @@ class CameraModel:
         """P-hat: normalised undistorted (N,2) -> raw pixels (N,2) (eqs. 5-8)."""
         xy = np.asarray(xy, dtype=float).reshape(-1, 2)
         x, y = xy[:, 0], xy[:, 1]
-        p1, p2 = self.dist[2:4]
         r2 = x * x + y * y
-        radial, _ = self._radial(r2)
-        xd = x * radial + 2 * p1 * x * y + p2 * (r2 + 2 * x * x)
-        yd = y * radial + p1 * (r2 + 2 * y * y) + 2 * p2 * x * y
+        if self.fisheye:
+            s, _ = self._fisheye_scale(np.sqrt(r2))
+            xd, yd = x * s, y * s
+        else:
+            p1, p2 = self.dist[2:4]
+            radial, _ = self._radial(r2)
+            xd = x * radial + 2 * p1 * x * y + p2 * (r2 + 2 * x * x)
+            yd = y * radial + p1 * (r2 + 2 * y * y) + 2 * p2 * x * y
         return np.column_stack([self.fx * xd + self.K[0, 1] * yd + self.cx, self.fy * yd + self.cy])
 
     def project(self, points_cam_m: np.ndarray) -> np.ndarray:
@@ -127,17 +162,25 @@ class CameraModel:
     def _undistort_start(self, uv: np.ndarray, finite: np.ndarray) -> np.ndarray:
         """Start for :meth:`normalize`: OpenCV's iterative undistortion, the pinhole inverse
         where that fails (non-finite or far off)."""
-        crit = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 50, 1e-12)
-        src = np.ascontiguousarray(np.where(finite[:, None], uv, 0.0).reshape(-1, 1, 2))
-        if hasattr(cv2, "undistortPointsIter"):  # OpenCV 4.x
-            xy = cv2.undistortPointsIter(src, self.K, self.dist, None, None, crit)
-        else:  # OpenCV 5 folded the criteria into undistortPoints
-            xy = cv2.undistortPoints(src, self.K, self.dist, None, None, None, crit)
-        xy = xy.reshape(-1, 2).astype(float)
+        xy = self.opencv_normalize(np.where(finite[:, None], uv, 0.0), 50)
         naive = np.column_stack([(uv[:, 0] - self.cx) / self.fx, (uv[:, 1] - self.cy) / self.fy])
         start_bad = ~np.isfinite(xy).all(axis=1) | (np.abs(xy) > 1e3).any(axis=1)
         xy[start_bad] = naive[start_bad]
         return xy
+
+    def opencv_normalize(self, uv_px: np.ndarray, iterations: int) -> np.ndarray:
+        """OpenCV's iterative undistortion of raw pixels (N,2) to normalised (N,2), for the
+        lens model in use (``cv2.fisheye`` for the fisheye model): fast, approximate near
+        strong distortion; :meth:`normalize` refines it."""
+        src = np.ascontiguousarray(np.asarray(uv_px, dtype=float).reshape(-1, 1, 2))
+        crit = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, int(iterations), 1e-12)
+        if self.fisheye:
+            xy = cv2.fisheye.undistortPoints(src, self.K, self.dist, criteria=crit)
+        elif hasattr(cv2, "undistortPointsIter"):  # OpenCV 4.x
+            xy = cv2.undistortPointsIter(src, self.K, self.dist, None, None, crit)
+        else:  # OpenCV 5 folded the criteria into undistortPoints
+            xy = cv2.undistortPoints(src, self.K, self.dist, None, None, None, crit)
+        return xy.reshape(-1, 2).astype(float)
 
     def _newton_step(self, xy: np.ndarray, uv: np.ndarray, res: np.ndarray) -> None:
         """One damped Newton step of :meth:`normalize` (``xy`` and its pixel error ``res`` in
@@ -161,23 +204,52 @@ class CameraModel:
         res[ok] = new_res[ok]
 
     def rays(self, uv_px: np.ndarray) -> np.ndarray:
-        """Unit viewing rays (N,3) in the camera frame for raw pixels (N,2)."""
+        """Unit viewing rays (N,3) in the camera frame for raw pixels (N,2). A fisheye's rays
+        may look 90 deg or more off the axis (z <= 0), where normalised coordinates end."""
+        if self.fisheye:
+            return self._fisheye_rays(uv_px)
         xy = self.normalize(uv_px)
         v = np.column_stack([xy, np.ones(len(xy))])
         return v / np.linalg.norm(v, axis=1, keepdims=True)
+
+    def _fisheye_rays(self, uv_px: np.ndarray) -> np.ndarray:
+        """:meth:`rays` of the fisheye model: theta from theta_d by Newton on the polynomial;
+        NaN beyond its fold (where theta_d stops growing with theta) and for NaN input."""
+        uv = np.asarray(uv_px, dtype=float).reshape(-1, 2)
+        yd = (uv[:, 1] - self.cy) / self.fy
+        xd = (uv[:, 0] - self.cx - self.K[0, 1] * yd) / self.fx
+        rd = np.hypot(xd, yd)
+        k = self.dist
+        th = np.clip(rd, 0.0, np.pi)
+        with np.errstate(all="ignore"):
+            for _ in range(30):
+                t2 = th * th
+                f = th * (1 + t2 * (k[0] + t2 * (k[1] + t2 * (k[2] + t2 * k[3])))) - rd
+                df = 1 + t2 * (3 * k[0] + t2 * (5 * k[1] + t2 * (7 * k[2] + t2 * 9 * k[3])))
+                th = np.clip(th - f / df, 0.0, np.pi)
+            ok = (np.abs(f) < 1e-9) & (df > 0)
+            s = np.where(rd > 1e-12, np.sin(th) / np.where(rd > 1e-12, rd, 1.0), 1.0)
+        v = np.column_stack([xd * s, yd * s, np.cos(th)])
+        v[~ok] = np.nan
+        return v
 
     # ---- Jacobians -----------------------------------------------------
     def distort_jacobian(self, xy: np.ndarray) -> np.ndarray:
         """d uv_px / d xy, shape (N,2,2), at normalised undistorted points."""
         xy = np.asarray(xy, dtype=float).reshape(-1, 2)
         x, y = xy[:, 0], xy[:, 1]
-        p1, p2 = self.dist[2:4]
         r2 = x * x + y * y
-        radial, dradial_dr2 = self._radial(r2)
-        dxd_dx = radial + x * dradial_dr2 * 2 * x + 2 * p1 * y + p2 * 6 * x
-        dxd_dy = x * dradial_dr2 * 2 * y + 2 * p1 * x + p2 * 2 * y
-        dyd_dx = y * dradial_dr2 * 2 * x + p1 * 2 * x + 2 * p2 * y
-        dyd_dy = radial + y * dradial_dr2 * 2 * y + p1 * 6 * y + 2 * p2 * x
+        if self.fisheye:
+            s, ds_over_r = self._fisheye_scale(np.sqrt(r2))
+            dxd_dx, dxd_dy = s + x * x * ds_over_r, x * y * ds_over_r
+            dyd_dx, dyd_dy = dxd_dy, s + y * y * ds_over_r
+        else:
+            p1, p2 = self.dist[2:4]
+            radial, dradial_dr2 = self._radial(r2)
+            dxd_dx = radial + x * dradial_dr2 * 2 * x + 2 * p1 * y + p2 * 6 * x
+            dxd_dy = x * dradial_dr2 * 2 * y + 2 * p1 * x + p2 * 2 * y
+            dyd_dx = y * dradial_dr2 * 2 * x + p1 * 2 * x + 2 * p2 * y
+            dyd_dy = radial + y * dradial_dr2 * 2 * y + p1 * 6 * y + 2 * p2 * x
         J = np.empty((len(x), 2, 2))
         J[:, 0, 0] = self.fx * dxd_dx + self.K[0, 1] * dyd_dx
         J[:, 0, 1] = self.fx * dxd_dy + self.K[0, 1] * dyd_dy
@@ -201,6 +273,23 @@ class CameraModel:
             & (uv[:, 1] >= -0.5 + margin_px)
             & (uv[:, 1] <= self.height_px - 0.5 - margin_px)
         )
+
+
+def vertical_fov_rad(cam: CameraModel) -> float:
+    """The angle between the rays of the image's top and bottom edge centres (rad), for any lens
+    model (a fisheye's can pass 90 deg); the pinhole value where a ray is undefined."""
+    ends = np.array([[cam.cx, -0.5], [cam.cx, cam.height_px - 0.5]])
+    v = cam.rays(ends)
+    if not np.isfinite(v).all():
+        return float(2 * np.arctan(cam.height_px / (2 * cam.fy)))
+    return float(np.arccos(np.clip(v[0] @ v[1], -1.0, 1.0)))
+
+
+def distortion_terms(cam: CameraModel) -> str:
+    """The names of ``cam.dist``'s values, in order, as every shell shows them."""
+    if cam.fisheye:
+        return "equidistant k1 k2 k3 k4"
+    return "k1 k2 p1 p2 k3 k4 k5 k6" if cam.rational else "k1 k2 p1 p2 k3"
 
 
 def pi_jacobian(points_cam_m: np.ndarray) -> np.ndarray:

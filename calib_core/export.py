@@ -225,9 +225,25 @@ def to_urdf(calibration: dict, camera: str | None = None, frames: FrameNames = F
             + "\n".join(body) + "\n</robot>\n")
 
 
+def _kalibr_distortion(cam: str, m: CameraModel, notes: list[str]) -> tuple[str, list[float]]:
+    """Kalibr's (distortion_model, distortion_coeffs) for a camera model; what Kalibr cannot
+    hold is named in ``notes``."""
+    if m.fisheye:
+        return "equidistant", [float(v) for v in m.dist]
+    k1, k2, p1, p2, k3 = (float(v) for v in m.dist[:5])
+    if k3 != 0.0:
+        notes.append(f"# {plain_line(cam)}: k3 = {_f(k3)} is not part of Kalibr's radtan model and was dropped.")
+    if m.rational:
+        notes.append(f"# {plain_line(cam)}: the rational model's k4..k6 = "
+                     f"{', '.join(_f(float(v)) for v in m.dist[5:])} are not part of Kalibr's radtan model "
+                     "and were dropped: these intrinsics are only an approximation there.")
+    return "radtan", [k1, k2, p1, p2]
+
+
 def to_kalibr(calibration: dict, intrinsics: dict[str, CameraModel], camera: str | None = None,
               topic_pattern: str = "/{cam}/image_raw") -> str:
-    """Kalibr-style camchain YAML: cam0, cam1, ... with pinhole/radtan intrinsics and ``T_cam_sonar``.
+    """Kalibr-style camchain YAML: cam0, cam1, ... with pinhole/radtan (or pinhole/equidistant)
+    intrinsics and ``T_cam_sonar``.
 
     ``T_cam_sonar`` follows Kalibr's ``T_cam_imu`` convention (maps sonar points into the
     camera). From the second camera on, ``T_cn_cnm1`` (previous camera -> this camera) is
@@ -242,19 +258,13 @@ def to_kalibr(calibration: dict, intrinsics: dict[str, CameraModel], camera: str
             raise KeyError(f"no intrinsics for camera '{cam}'")
         m = intrinsics[cam]
         T = np.asarray(c["T_cam_sonar"], float)
-        k1, k2, p1, p2, k3 = (float(v) for v in m.dist[:5])
-        if k3 != 0.0:
-            notes.append(f"# {plain_line(cam)}: k3 = {_f(k3)} is not part of Kalibr's radtan model and was dropped.")
-        if m.rational:
-            notes.append(f"# {plain_line(cam)}: the rational model's k4..k6 = "
-                         f"{', '.join(_f(float(v)) for v in m.dist[5:])} are not part of Kalibr's radtan model "
-                         "and were dropped: these intrinsics are only an approximation there.")
+        model, coeffs = _kalibr_distortion(cam, m, notes)
         entry = {
             "camera_name": cam,
             "camera_model": "pinhole",
             "intrinsics": [m.fx, m.fy, m.cx, m.cy],
-            "distortion_model": "radtan",
-            "distortion_coeffs": [k1, k2, p1, p2],
+            "distortion_model": model,
+            "distortion_coeffs": coeffs,
             "resolution": [int(m.width_px), int(m.height_px)],
             "rostopic": topic_pattern.format(cam=cam),
             "T_cam_sonar": [[float(v) for v in row] for row in T],
@@ -267,7 +277,8 @@ def to_kalibr(calibration: dict, intrinsics: dict[str, CameraModel], camera: str
             "# T_cam_sonar maps points in the sonar frame (metres) into this camera's optical frame\n"
             "# (x right, y down, z forward), like Kalibr's T_cam_imu. T_cn_cnm1 maps the previous\n"
             "# camera's frame into this one (chained through the sonar calibration).\n"
-            "# intrinsics: [fu, fv, pu, pv] px; distortion_coeffs: [k1, k2, r1, r2] (OpenCV order).\n")
+            "# intrinsics: [fu, fv, pu, pv] px; distortion_coeffs: radtan [k1, k2, r1, r2] (OpenCV order)\n"
+            "# or equidistant [k1, k2, k3, k4].\n")
     return head + _scale_note(calibration) + "".join(n + "\n" for n in notes) + \
         yaml.safe_dump(out, sort_keys=False, default_flow_style=None)
 

@@ -59,8 +59,11 @@ def detection_inputs(data: SessionData, capture_id: str, sensor: str) -> tuple[l
                                   "beam_width_deg": round(float(data.effective_beam_width_deg), 4)}
     spec = s.cameras[sensor]
     paths = [cap.image_paths[sensor], spec.intrinsics_path] + ([spec.background_path] if spec.background_path else [])
-    return paths, {"sensor": "image", "sphere_diameter_m": s.sphere_diameter_m,
-                   "background_window_s": list(spec.background_window_s)}
+    params = {"sensor": "image", "sphere_diameter_m": s.sphere_diameter_m,
+              "background_window_s": list(spec.background_window_s)}
+    if spec.intrinsics_entry is not None:  # which camera of a Kalibr camchain
+        params["intrinsics_entry"] = spec.intrinsics_entry
+    return paths, params
 
 
 def stale(data: SessionData, detections: dict, todo: list[tuple[str, str]], strict: bool = False) -> list:

@@ -9,6 +9,8 @@ Extensions to the contract (all optional):
 - ``stereo``: ``{T_cam2_cam1: 4x4}`` stereo transforms between cameras (e.g. from
   ``sonarcal stereo``), keys ``T_<target>_<source>``.
 - per camera ``background_window: [start_s, end_s]`` for a background video.
+- per camera ``intrinsics_entry: cam0`` when ``intrinsics`` is a Kalibr camchain of several
+  cameras (the entry's key); without it the entry whose camera_name or rostopic names the camera.
 """
 
 from __future__ import annotations
@@ -39,6 +41,7 @@ class CameraSpec:
     intrinsics_path: Path
     background_path: Path | None = None
     background_window_s: tuple[float, float | None] = (0.0, None)
+    intrinsics_entry: str | None = None  # the key of a Kalibr camchain's entry (cam0, ...)
 
 
 @dataclass(frozen=True)
@@ -86,7 +89,8 @@ class Session:
 
         if cam not in self.cameras:
             raise SessionError(self.manifest_path, f"no camera {short_repr(cam)} (cameras: {', '.join(self.cameras)})")
-        return load_intrinsics(self.cameras[cam].intrinsics_path)
+        spec = self.cameras[cam]
+        return load_intrinsics(spec.intrinsics_path, cam, spec.intrinsics_entry)
 
 
 def resolve_inside(root: Path, rel, manifest: Path, what: str) -> Path:
@@ -230,7 +234,10 @@ def _camera_spec(root: Path, manifest: Path, name: str, spec) -> CameraSpec:
         raise SessionError(manifest, f"cameras.{name}.background_window must be [start_s, end_s]")
     start = _num(manifest, win[0], f"cameras.{name}.background_window", positive=False)
     end = None if win[1] is None else _num(manifest, win[1], f"cameras.{name}.background_window", positive=False)
-    return CameraSpec(name, intr, bgp, (start, end))
+    entry = spec.get("intrinsics_entry")
+    if entry is not None and (not isinstance(entry, str) or not 0 < len(entry) <= 64 or not entry.isprintable()):
+        raise SessionError(manifest, f"cameras.{name}.intrinsics_entry must be a short name such as cam0")
+    return CameraSpec(name, intr, bgp, (start, end), entry)
 
 
 def _captures(root: Path, manifest: Path, caps_raw, cameras: dict) -> list[Capture]:
@@ -360,7 +367,7 @@ def _check_cameras(session: Session, problems: list) -> dict[str, CameraModel]:
     models: dict[str, CameraModel] = {}
     for name, spec in session.cameras.items():
         try:
-            models[name] = load_intrinsics(spec.intrinsics_path)
+            models[name] = load_intrinsics(spec.intrinsics_path, name, spec.intrinsics_entry)
         except SessionError as e:
             problems.append(e)
         if spec.background_path is not None:

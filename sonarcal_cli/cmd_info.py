@@ -28,8 +28,9 @@ def run(args) -> int:
             cam_rows.append([name, spec.intrinsics_path.relative_to(s.root),
                              f"{m.width_px}x{m.height_px}" if m else "?",
                              f"{m.fx:.1f} / {m.fy:.1f}" if m else "?",
+                             m.distortion_model if m else "?",
                              spec.background_path.relative_to(s.root) if spec.background_path else "-"])
-        console.print(table("Cameras", ["camera", "intrinsics", "size", "fx / fy px", "background"], cam_rows))
+        console.print(table("Cameras", ["camera", "intrinsics", "size", "fx / fy px", "lens model", "background"], cam_rows))
         cap_rows = [[c.id, c.cloud_path.relative_to(s.root), _points_cell(check, c.id),
                      ", ".join(sorted(c.image_paths)) or "-"] for c in s.captures]
         console.print(table(f"Captures ({len(s.captures)})", ["capture", "cloud", "points", "images"], cap_rows))

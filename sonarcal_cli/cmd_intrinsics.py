@@ -6,6 +6,7 @@ from pathlib import Path
 
 from rich.markup import escape
 
+from calib_core.camera import distortion_terms
 from calib_core.errors import SessionError
 from sonarcal_cli.checkerboard_common import check_square, load_images
 from sonarcal_cli.ui import console, progress_bar, table
@@ -42,7 +43,7 @@ def run_intrinsics(args) -> int:
                   f"cx {c.cx:.2f} cy {c.cy:.2f} (1-sigma {res.sigma.get('fx', float('nan')):.2f} / "
                   f"{res.sigma.get('fy', float('nan')):.2f} / {res.sigma.get('cx', float('nan')):.2f} / "
                   f"{res.sigma.get('cy', float('nan')):.2f} px)")
-    console.print("distortion k1 k2 p1 p2 k3: " + " ".join(f"{v:.5f}" for v in c.dist))
+    console.print(f"distortion {distortion_terms(c)}: " + " ".join(f"{v:.5f}" for v in c.dist))
     rows = [[n, f"{e:.3f}"] for n, e in res.per_image_rms_px.items()]
     rows += [[n, f"skipped: {r}"] for n, r in res.skipped.items()]
     console.print(table(f"Per-image reprojection RMS (px), {len(res.per_image_rms_px)} used", ["image", "RMS px"], rows))

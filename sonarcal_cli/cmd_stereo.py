@@ -40,7 +40,7 @@ def run_stereo(args) -> int:
     cams = []
     for which, path, folder, idx in ((n1, args.intrinsics1, args.folder1, 1), (n2, args.intrinsics2, args.folder2, 2)):
         if path:
-            cams.append(load_intrinsics(path))
+            cams.append(load_intrinsics(path, which))
         else:
             imgs = [(t[0], t[idx]) for t in loaded]
             with progress_bar(f"{which} intrinsics") as cb:

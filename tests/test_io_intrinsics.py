@@ -114,7 +114,7 @@ def test_opencv_filestorage_alternative_names(tmp_path):
     (lambda d: d["camera_matrix"].update(data=[float("nan"), 0, 961.2, 0, 1400.1, 538.9, 0, 0, 1]), "NaN or infinite"),
     (lambda d: d["camera_matrix"].update(data=10**400), "list of numbers"),
     (lambda d: d["distortion_coefficients"].update(data=[10**400, 0, 0, 0, 0]), "list of numbers"),
-    (lambda d: d.update(distortion_model="equidistant"), "not supported"),
+    (lambda d: d.update(distortion_model="double_sphere"), "not supported"),
     (lambda d: d.pop("camera_matrix"), "missing 'camera_matrix'"),
     (lambda d: d.update(camera_matrix=None), "missing 'camera_matrix'"),
     (lambda d: d.update(camera_matrix={"rows": 3}), "has 1 values"),

@@ -11,7 +11,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from calib_core.pipeline import correspondences
-from calib_core.solve.model import camera_data, per_camera_stats
+from calib_core.solve.model import per_camera_stats
+from calib_core.solve.stated import camera_data_from
 
 MIN_CAPTURES = 6  # below this RANSAC cannot tell an outlier from the rest (calib_core.solve.pnp)
 
@@ -39,8 +40,7 @@ def check_camera(session, detections: dict, cam: str) -> Consistency | None:
     corr = correspondences(session, detections, cam)
     if len(corr) < MIN_CAPTURES:
         return None
-    cd = camera_data(cam, session.camera_model(cam), corr.capture_ids, corr.uv_px, corr.cov_uv_px2,
-                     corr.X_sonar_m, corr.cov_X_m2)
+    cd = camera_data_from(session.camera_model(cam), detections, cam, corr, with_ranges=False)
     return consistency_of(cd)
 
 

@@ -32,7 +32,7 @@ _MAX_REMAP_COLS = 4096  # cv2.remap needs maps smaller than SHRT_MAX per side
 # ---------------------------------------------------------------- projection
 def _r2_limit(cam: CameraModel) -> float:
     """Cached :func:`_r2_limit_uncached` (thread-safe enough: a race only recomputes)."""
-    key = (cam.width_px, cam.height_px, cam.K.tobytes(), cam.dist.tobytes())
+    key = (cam.width_px, cam.height_px, cam.K.tobytes(), cam.dist.tobytes(), cam.fisheye)
     value = _R2_CACHE.get(key)
     if value is None:
         if len(_R2_CACHE) > 64:
@@ -63,6 +63,25 @@ def _r2_limit_uncached(cam: CameraModel) -> float:
     r2 = np.sum(xy * xy, axis=1)
     r2 = r2[np.isfinite(r2)]
     return float(r2.max() * 1.05) if r2.size else np.inf
+
+
+def _fisheye_scale32(x: np.ndarray, y: np.ndarray, k1234) -> np.ndarray:
+    """theta_d / r (float32) of OpenCV's fisheye model at normalised (x, y); 1 on the axis."""
+    k1, k2, k3, k4 = (np.float32(c) for c in k1234)
+    r = np.sqrt(x * x + y * y)
+    th = np.arctan(r)
+    t2 = th * th
+    poly = t2 * k4
+    poly += k3
+    poly *= t2
+    poly += k2
+    poly *= t2
+    poly += k1
+    poly *= t2
+    poly += np.float32(1.0)
+    poly *= th
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(r > np.float32(1e-7), poly / r, np.float32(1.0)).astype(np.float32)
 
 
 def _rational_denominator(r2: np.ndarray, k456) -> np.ndarray:
@@ -116,9 +135,13 @@ def _project(points_sonar_m, T_cam_sonar, cam: CameraModel, margin_px: float = 0
         y = Pc[:, 1].astype(np.float32)
         y *= inv
         f32 = np.float32
-        k1, k2, p1, p2, k3 = (f32(c) for c in cam.dist[:5])
         ok = front
-        if np.any(cam.dist):
+        if cam.fisheye:
+            ok = ok & (x * x + y * y <= f32(min(_r2_limit(cam), 1e30)))
+            s = _fisheye_scale32(x, y, cam.dist)
+            xd, yd = x * s, y * s
+        elif np.any(cam.dist):
+            k1, k2, p1, p2, k3 = (f32(c) for c in cam.dist[:5])
             r2 = x * x
             r2 += y * y
             ok = ok & (r2 <= f32(min(_r2_limit(cam), 1e30)))

@@ -130,7 +130,7 @@ def _camera_models(reader, path, cams, opts: ImportOptions, conns) -> dict:
     """Intrinsics per camera: a file given with --intrinsics, else the first CameraInfo."""
     from calib_core.io.intrinsics import load_intrinsics
 
-    models = {c.name: load_intrinsics(opts.intrinsics[c.name]) for c in cams if c.name in opts.intrinsics}
+    models = {c.name: load_intrinsics(opts.intrinsics[c.name], c.name) for c in cams if c.name in opts.intrinsics}
     unknown = set(opts.intrinsics) - {c.name for c in cams}
     if unknown:
         raise SessionError(path, f"--intrinsics for unknown camera(s) {', '.join(sorted(unknown))} "

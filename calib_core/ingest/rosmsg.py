@@ -124,14 +124,19 @@ def _decode_compressed(msg) -> np.ndarray:
 
 
 def camera_from_info(msg, name: str) -> CameraModel:
-    """CameraModel from a CameraInfo message (plumb_bob, or rational_polynomial's 8 terms)."""
+    """CameraModel from a CameraInfo message (plumb_bob, rational_polynomial's 8 terms, or
+    equidistant's 4)."""
     K = np.asarray(getattr(msg, "k", getattr(msg, "K", None)), dtype=float).reshape(3, 3)
     D = np.asarray(getattr(msg, "d", getattr(msg, "D", [])), dtype=float).ravel()
     model = str(msg.distortion_model or "plumb_bob")
-    if model not in ("plumb_bob", "rational_polynomial", "") or (model == "" and D.size):
-        raise ValueError(f"distortion model '{model}' is not supported (use plumb_bob or rational_polynomial)")
+    if model not in ("plumb_bob", "rational_polynomial", "equidistant", "") or (model == "" and D.size):
+        raise ValueError(f"distortion model '{model}' is not supported (use plumb_bob, rational_polynomial or equidistant)")
     if not (np.isfinite(K).all() and K[0, 0] > 0 and K[1, 1] > 0 and msg.width > 0 and msg.height > 0):
         raise ValueError("CameraInfo holds no valid camera matrix (is the camera calibrated?)")
+    if model == "equidistant":
+        if np.any(D[4:] != 0) or not np.isfinite(D).all():
+            raise ValueError(f"equidistant distortion has 4 coefficients k1..k4, got {D.size}")
+        return CameraModel(int(msg.width), int(msg.height), K, D[:4], name=name, fisheye=True)
     if model != "rational_polynomial" and np.any(D[5:8] != 0):
         raise ValueError("plumb_bob distortion has 5 coefficients, but k4..k6 are not zero (rational_polynomial?)")
     return CameraModel(int(msg.width), int(msg.height), K, D[:8], name=name)
@@ -178,4 +183,4 @@ def info_msg(ts, stamp: int, frame: str, cam: CameraModel, ros1: bool):
     if ros1:
         arrays = {k.upper(): v for k, v in arrays.items()}
     return ts.types[CAMERA_INFO](header=header_msg(ts, stamp, frame, ros1), height=cam.height_px, width=cam.width_px,
-                                 distortion_model="rational_polynomial" if cam.rational else "plumb_bob", binning_x=0, binning_y=0, roi=roi, **arrays)
+                                 distortion_model=cam.distortion_model, binning_x=0, binning_y=0, roi=roi, **arrays)

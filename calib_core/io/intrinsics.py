@@ -1,4 +1,5 @@
-"""Intrinsics files: ROS camera_info YAML and OpenCV FileStorage YAML/XML."""
+"""Intrinsics files: ROS camera_info YAML (plumb_bob, rational_polynomial, equidistant) and
+OpenCV FileStorage YAML/XML."""
 
 from __future__ import annotations
 
@@ -13,13 +14,16 @@ import yaml
 from calib_core.camera import CameraModel
 from calib_core.errors import SessionError, short_repr
 from calib_core.io.atomic import atomic_write_text
+from calib_core.io.kalibr import camera_from_camchain, is_camchain
 from calib_core.io.yaml_safe import parse_yaml_checked
 
 MAX_INTRINSICS_BYTES = 1024 * 1024
 
 
-def load_intrinsics(path: str | Path) -> CameraModel:
-    """Read a ROS camera_info YAML or an OpenCV FileStorage file into a CameraModel."""
+def load_intrinsics(path: str | Path, camera: str | None = None, entry: str | None = None) -> CameraModel:
+    """Read a ROS camera_info YAML, a Kalibr camchain or an OpenCV FileStorage file into a
+    CameraModel. Of a camchain with several cameras: the ``entry`` key (cam0, ...), else the one
+    whose camera_name or rostopic names ``camera`` (see :mod:`calib_core.io.kalibr`)."""
     path = Path(path)
     if not path.is_file():
         raise SessionError(path, "intrinsics file not found")
@@ -43,6 +47,8 @@ def load_intrinsics(path: str | Path) -> CameraModel:
     data = parse_yaml_checked(path, text)
     if not isinstance(data, dict):
         raise SessionError(path, "expected a ROS camera_info mapping (image_width, camera_matrix, ...)")
+    if is_camchain(data):
+        return camera_from_camchain(path, data, camera, entry)
     return _from_ros(path, data)
 
 
@@ -96,10 +102,16 @@ def _from_ros(path: Path, data: dict) -> CameraModel:
         raise SessionError(path, "image_width and image_height must be whole numbers")
     K = _matrix(path, data, "camera_matrix", 9).reshape(3, 3)
     model = data.get("distortion_model", "plumb_bob")
-    if model not in ("plumb_bob", "rational_polynomial", "", None):
+    if model not in ("plumb_bob", "rational_polynomial", "equidistant", "fisheye", "", None):
         raise SessionError(path, f"distortion_model {short_repr(model)} is not supported "
-                                 "(use plumb_bob or rational_polynomial)")
+                                 "(use plumb_bob, rational_polynomial or equidistant)")
     dist = _matrix(path, data, "distortion_coefficients", (4, 5, 8)) if "distortion_coefficients" in data else np.zeros(5)
+    if model in ("equidistant", "fisheye"):
+        _check_K(path, K, w, h)
+        if dist.size != 4 and np.any(dist[4:] != 0):
+            raise SessionError(path, f"equidistant (fisheye) distortion has 4 coefficients k1..k4, "
+                                     f"but {dist.size} are given and values 5-{dist.size} are not zero")
+        return CameraModel(w, h, K, dist[:4], name=_camera_name(path, data.get("camera_name")), fisheye=True)
     if dist.size == 8 and model == "plumb_bob" and np.any(dist[5:] != 0):
         raise SessionError(path, "plumb_bob distortion has 5 coefficients, but k4..k6 (values 6-8) are not zero: "
                                  "write distortion_model: rational_polynomial")
@@ -199,7 +211,7 @@ def camera_info_dict(cam: CameraModel, name: str | None = None) -> dict:
         "image_height": int(cam.height_px),
         "camera_name": name or cam.name or "camera",
         "camera_matrix": {"rows": 3, "cols": 3, "data": [float(v) for v in cam.K.ravel()]},
-        "distortion_model": "rational_polynomial" if cam.rational else "plumb_bob",
+        "distortion_model": cam.distortion_model,
         "distortion_coefficients": {"rows": 1, "cols": int(cam.dist.size), "data": [float(v) for v in cam.dist]},
         "rectification_matrix": {"rows": 3, "cols": 3, "data": [float(v) for v in np.eye(3).ravel()]},
         "projection_matrix": {"rows": 3, "cols": 4, "data": [float(v) for v in P.ravel()]},

@@ -66,14 +66,14 @@ def field_from_session(session, load_points=None, max_clouds: int = 4, max_point
 def _camera_state(session, detections, cam: str, calibration: dict | None):
     """(CameraState, correspondences) or (None, reason)."""
     from calib_core.pipeline import correspondences
-    from calib_core.solve.model import camera_data
     from calib_core.solve.single import solve_camera
+    from calib_core.solve.stated import camera_data_from, solver_sonar_cov, stated_sonar_rows
 
     corr = correspondences(session, detections, cam)
     model = session.camera_model(cam)
     n = len(corr)
     if n >= 4:
-        cd = camera_data(cam, model, corr.capture_ids, corr.uv_px, corr.cov_uv_px2, corr.X_sonar_m, corr.cov_X_m2)
+        cd = camera_data_from(model, detections, cam, corr, with_ranges=False)  # weighed as a Solve weighs them
         try:
             sol = solve_camera(cd, estimate_scale=False, loo=False)  # the planner plans the pose, scale at 1
         except SessionError as e:
@@ -83,7 +83,8 @@ def _camera_state(session, detections, cam: str, calibration: dict | None):
     entry = ((calibration or {}).get("cameras") or {}).get(cam) or {}
     if n == 3 and entry.get("T_cam_sonar") is not None:
         T = np.asarray(entry["T_cam_sonar"], float).reshape(4, 4)
-        D, S = capture_terms(model, T, corr.X_sonar_m, corr.cov_uv_px2, corr.cov_X_m2)
+        cov_X = solver_sonar_cov(corr.cov_X_m2, stated_sonar_rows(detections, corr.capture_ids))
+        D, S = capture_terms(model, T, corr.X_sonar_m, corr.cov_uv_px2, cov_X)
         return CameraState(cam, model, T, safe_inverse(information(D, S)), 1.0, n), corr
     return None, f"{n} usable captures (the planner needs 4, or 3 and a calibration)"
 

@@ -21,6 +21,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from calib_core import __version__
+from calib_core.camera import distortion_terms
 from calib_core.detect.reasons import entry_note, score_phrase
 from calib_core.errors import SessionError
 from calib_core.markup import escape_html
@@ -65,9 +66,9 @@ def _summary(session, calibration, models, cal_note) -> str:
     if session.measured_m:
         rows.append(["measured baselines", ", ".join(f"{k} {v * 1000:.1f} mm" for k, v in session.measured_m.items())])
     cams = [[c, f"{m.width_px} x {m.height_px}", f"{m.fx:.1f} / {m.fy:.1f}", f"{m.cx:.1f} / {m.cy:.1f}",
-             " ".join(f"{d:.4g}" for d in m.dist)] if m else [c, "unavailable", "-", "-", "-"]
+             f"{distortion_terms(m)}: " + " ".join(f"{d:.4g}" for d in m.dist)] if m else [c, "unavailable", "-", "-", "-"]
             for c, m in models.items()]
-    html = _table(["", ""], rows) + _table(["camera", "size px", "fx / fy px", "cx / cy px", "k1 k2 p1 p2 k3 (k4 k5 k6: rational model)"], cams)
+    html = _table(["", ""], rows) + _table(["camera", "size px", "fx / fy px", "cx / cy px", "distortion"], cams)
     if calibration:
         created = calibration.get("created") or "-"
         tool = calibration.get("tool") or {}

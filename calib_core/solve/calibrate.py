@@ -22,7 +22,7 @@ from calib_core import __version__
 from calib_core.errors import SessionError
 from calib_core.results import CALIBRATION_FORMAT
 from calib_core.solve.consistency import consistency, consistency_phrase, is_warning
-from calib_core.solve.model import camera_data
+from calib_core.solve.stated import camera_data_from
 from calib_core.solve.refine import ROBUST_LOSSES, Link
 from calib_core.solve.scale import (diameter_sigma, outline_sigma_px, range_model, range_rel_sigma, size_route_caution,
                                    stereo_limit_note)
@@ -140,8 +140,7 @@ def _solve_cameras(session, dets, opts, progress):
         corr = pipeline.correspondences(session, dets, cam)
         model = session.camera_model(cam)
         try:
-            cd = camera_data(cam, model, corr.capture_ids, corr.uv_px, corr.cov_uv_px2, corr.X_sonar_m, corr.cov_X_m2,
-                             corr.range_m, corr.range_sigma_m)
+            cd = camera_data_from(model, dets, cam, corr)
             sol = solve_camera(cd, estimate_scale=single_scale, robust=opts.robust, loo=opts.leave_one_out,
                                check_outliers=opts.check_outliers, seed=opts.seed,
                                range_model=range_model(session))

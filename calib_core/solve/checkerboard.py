@@ -139,6 +139,11 @@ class StereoResult:
 def calibrate_stereo(pairs: list[tuple[str, np.ndarray, np.ndarray]], cam1: CameraModel, cam2: CameraModel,
                      pattern: tuple[int, int], square_m: float, progress=None) -> StereoResult:
     """``T_cam2_cam1`` from ``[(name, image1, image2)]`` simultaneous checkerboard views, intrinsics fixed."""
+    for cam, which in ((cam1, 1), (cam2, 2)):
+        if cam.fisheye:
+            raise SessionError(None, f"camera {which} has fisheye (equidistant) intrinsics: the checkerboard stereo "
+                                     "calibration supports plumb_bob and rational_polynomial only; give the stereo "
+                                     "transform in session.yaml (e.g. from Kalibr) instead")
     found1, skip1, size1 = _detect_all([(n, a) for n, a, _ in pairs], pattern, progress, "camera 1 corners")
     found2, skip2, size2 = _detect_all([(n, b) for n, _, b in pairs], pattern, progress, "camera 2 corners")
     for cam, size, which in ((cam1, size1, 1), (cam2, size2, 2)):

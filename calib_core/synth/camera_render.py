@@ -75,8 +75,8 @@ class RenderOptions:
 
 
 @lru_cache(maxsize=4)  # ~50 MB per 1080p camera
-def _pixel_rays_cached(w: int, h: int, K: tuple, dist: tuple) -> np.ndarray:
-    cam = CameraModel(w, h, np.array(K).reshape(3, 3), np.array(dist))
+def _pixel_rays_cached(w: int, h: int, K: tuple, dist: tuple, fisheye: bool = False) -> np.ndarray:
+    cam = CameraModel(w, h, np.array(K).reshape(3, 3), np.array(dist), fisheye=fisheye)
     u, v = np.meshgrid(np.arange(w, dtype=float), np.arange(h, dtype=float))
     return camera_rays(cam, np.column_stack([u.ravel(), v.ravel()]))
 
@@ -88,13 +88,10 @@ def camera_rays(cam: CameraModel, uv_px: np.ndarray) -> np.ndarray:
     still finite (Newton from OpenCV's start), but only in-image pixels are used.
     """
     uv = np.asarray(uv_px, float).reshape(-1, 2)
-    crit = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 6, 1e-12)
-    src = np.ascontiguousarray(uv.reshape(-1, 1, 2))
-    if hasattr(cv2, "undistortPointsIter"):  # OpenCV 4.x
-        xy = cv2.undistortPointsIter(src, cam.K, cam.dist, None, None, crit)
-    else:  # OpenCV 5
-        xy = cv2.undistortPoints(src, cam.K, cam.dist, None, None, None, crit)
-    xy = xy.reshape(-1, 2).astype(float)
+    if cam.fisheye:  # its rays may look beyond 90 deg, where normalised coordinates end
+        v = cam.rays(uv)
+        return np.where(np.isfinite(v), v, [0.0, 0.0, -1.0])  # past the lens's fold: look backwards
+    xy = cam.opencv_normalize(uv, 6)
     with np.errstate(all="ignore"):
         for _ in range(3):  # Newton on the exact forward model (quadratic convergence)
             r = cam.distort(xy) - uv
@@ -111,7 +108,7 @@ def camera_rays(cam: CameraModel, uv_px: np.ndarray) -> np.ndarray:
 
 def pixel_rays(cam: CameraModel) -> np.ndarray:
     """Camera-frame unit rays (H*W,3) of every pixel centre, row-major (cached per model)."""
-    return _pixel_rays_cached(cam.width_px, cam.height_px, tuple(cam.K.ravel()), tuple(cam.dist))
+    return _pixel_rays_cached(cam.width_px, cam.height_px, tuple(cam.K.ravel()), tuple(cam.dist), cam.fisheye)
 
 
 def _shade(scene: Scene, water: Water, o_world, d_world, max_range_m, photo: ph.Photo | None = None):

@@ -211,10 +211,12 @@ def _manifest_and_truth(L: Layout, cam_entries: dict, manifest_caps: list, gt_ca
     gt = {"format": GT_FORMAT, "preset": P.name, "seed": int(L.seed), "range_scale": float(P.range_scale),
           "sphere_diameter_m": float(L.diameter), "session_diameter_m": session["sphere"]["diameter"],
           "cameras": {c: {"T_cam_sonar": to_list(T_true[c])} for c in cams}}
-    if len(cams) == 2:
-        T21 = T_true["cam2"] @ invert_T(T_true["cam1"])
-        session["stereo"] = {"T_cam2_cam1": to_list(_checkerboard_error(r_noise, T21))}
-        gt["stereo"] = {"T_cam2_cam1": to_list(T21)}
+    if len(cams) >= 2:  # every other camera tied to cam1 (T_<cam>_cam1), as checkerboards give them
+        session["stereo"], gt["stereo"] = {}, {}
+        for c in cams[1:]:
+            T_c1 = T_true[c] @ invert_T(T_true["cam1"])
+            session["stereo"][f"T_{c}_cam1"] = to_list(_checkerboard_error(r_noise, T_c1))
+            gt["stereo"][f"T_{c}_cam1"] = to_list(T_c1)
     gt["sonar"] = _sensor_truth(P, L.cfg)
     gt["world"] = {"T_world_sonar": to_list(rig.T_world_sonar), "surface_z_m": L.surface_z,
                    "seabed_z_m": L.seabed_z, "attenuation_per_m": L.water.attenuation_per_m}

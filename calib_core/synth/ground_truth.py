@@ -9,7 +9,7 @@ Format ``sonar-camera-ground-truth/1`` (written next to session.yaml)::
     sphere_diameter_m: 0.22     # the TRUE diameter (session.yaml may state a wrong one)
     session_diameter_m: 0.22    # what session.yaml states
     cameras: {cam1: {T_cam_sonar: 4x4}}
-    stereo: {T_cam2_cam1: 4x4}  # exact, = T_cam2_sonar @ inv(T_cam1_sonar) (two cameras only)
+    stereo: {T_cam2_cam1: 4x4}  # exact, = T_cam2_sonar @ inv(T_cam1_sonar); T_cam3_cam1 too with three
     sonar: {frame: ..., beam_width_deg, n_beams, fan_deg, pan_step_deg, pan_span_deg, ...}
     captures:
       p01:

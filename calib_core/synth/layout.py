@@ -104,7 +104,7 @@ class Placement:
 def sample_layout(P, seed, r_rig, r_scene, r_sonar) -> Layout:
     """Draw a session's layout for preset ``P`` (rig, sphere, water, sensor, levels)."""
     W, H = max(16, round(1920 * P.scale)), max(9, round(1080 * P.scale))
-    rig = sample_rig(r_rig, P.n_cameras, W, H, P.scale)
+    rig = sample_rig(r_rig, P.n_cameras, W, H, P.scale, P.lens)
     diameter = 0.22 if P.name == "canal" else float(r_rig.uniform(*P.diameter_range))
     # a wrong stated diameter is too big or too small, by the preset's factor
     d_factor = P.diameter_factor if P.diameter_factor == 1 or r_rig.random() < 0.5 else 2 - P.diameter_factor
@@ -178,7 +178,12 @@ def _centers(L: Layout, r_rig) -> list:
         if P.holder:  # the holder (slab, table, chair, person) must not hide the sphere
             c = _holder_center(L, r_rig, i, ref, i in corner_idx)
         else:
-            c, _ = sample_target_center(r_rig, L.rig, L.radius, ref, i in corner_idx, L.ok_extra)
+            try:
+                c, _ = sample_target_center(r_rig, L.rig, L.radius, ref, i in corner_idx, L.ok_extra)
+            except RuntimeError:  # a fisheye's corners can lie wholly outside the sonar's field
+                if i not in corner_idx:
+                    raise
+                c, _ = sample_target_center(r_rig, L.rig, L.radius, ref, False, L.ok_extra)
         centers.append(c)
     return centers
 

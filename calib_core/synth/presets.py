@@ -14,7 +14,7 @@ from dataclasses import dataclass, replace
 class Preset:
     """Scene kind and sensor settings of a synthetic session.
 
-    n_cameras: 1 or 2 (2 = the paper's stereo rig, cameras cam1 and cam2).
+    n_cameras: 1, 2 (the paper's stereo rig, cameras cam1 and cam2) or 3 (a third, cam3, above them).
     n_captures: target captures (the sphere held still during a scan).
     n_flange: extra non-target captures (steel pipe with a square flange, sphere absent).
     pan_step_deg, sub_rays: sonar pan step and sub-rays per 1 deg beam cone.
@@ -80,6 +80,9 @@ class Preset:
     # ball of a shade drawn by seed, key light, cast and contact shadows, vignetting, exposure,
     # textured room) or "carried" (foam ball with a seam / logo, some captures motion-blurred)
     photo: str = ""
+    # the cameras' lens model: "" = pinhole + plumb_bob, "fisheye" = OpenCV's equidistant model
+    # (a wide dome-port camera, 110-160 deg across; intrinsics written as ROS "equidistant")
+    lens: str = ""
 
     def with_(self, **changes) -> "Preset":
         """A copy with some fields changed (e.g. ``scale=0.25`` for fast tests)."""
@@ -155,6 +158,20 @@ _LIST += [
            range_sensor="rgbd|lidar16", holder="hand", solid_ball=True, diameter_range=(0.3, 0.5), bright=True,
            n_backgrounds=0, photo="carried"),
 ]
+
+# a wide-angle camera (issue 11: other rigs)
+_LIST.append(Preset(
+    "fisheye", "one wide dome-port camera in OpenCV's fisheye (equidistant) model, 110-160 deg across, beside "
+    "the sonar in the canal; half the captures aimed near the image's edges, where the sphere is squashed",
+    n_captures=9, pan_step_deg=0.75, lens="fisheye", corner_fraction=0.5))
+
+# three cameras (issue 11: real set B's rig), tied to cam1 by checkerboard-like stereo transforms
+_LIST.append(Preset(
+    "carried-3cam", "real set B's rig: carried-photo's yellow foam ball carried by a person, seen by three cameras "
+    "(the stereo pair and a third above them, each tied to cam1 by a stereo transform); RGB-D (even seeds) or "
+    "16-ring LiDAR (odd seeds); no background frames", n_cameras=3, n_captures=8, scene="lab",
+    range_sensor="rgbd|lidar16", holder="hand", solid_ball=True, diameter_range=(0.3, 0.5), bright=True,
+    n_backgrounds=0, photo="carried"))
 
 PRESETS: dict[str, Preset] = {p.name: p for p in _LIST}
 

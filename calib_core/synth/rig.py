@@ -85,10 +85,39 @@ def _camera_pose(rng, eye, target, roll_sigma_deg=2.0) -> np.ndarray:
     return invert_T(T_cam_world)
 
 
+def sample_fisheye_intrinsics(rng: np.random.Generator, width_px: int, height_px: int, name: str,
+                              scale: float = 1.0) -> CameraModel:
+    """Random wide-angle intrinsics in OpenCV's fisheye (equidistant) model, as a dome-port
+    action camera is calibrated: 110-160 deg across the image width, k1..k4 of a few percent;
+    rejects any whose angle polynomial folds inside the image (15 % to spare)."""
+    for _ in range(500):
+        half_fov = np.deg2rad(rng.uniform(55.0, 80.0))
+        f = 0.5 * width_px / half_fov  # r_d = f theta at the image's side edge
+        fy = f * (1 + rng.normal(0, 0.002))
+        cx = width_px / 2 + rng.normal(0, 0.01 * width_px)
+        cy = height_px / 2 + rng.normal(0, 0.01 * height_px)
+        k = [rng.uniform(-0.05, 0.1), rng.uniform(-0.05, 0.03), rng.uniform(-0.01, 0.01), rng.uniform(-0.003, 0.003)]
+        cam = CameraModel(width_px, height_px, [[f, 0, cx], [0, fy, cy], [0, 0, 1.0]], k, name=name, fisheye=True)
+        th = np.linspace(0, 1.15 * np.hypot(width_px, height_px) / (2 * f), 400)
+        t2 = th * th
+        g = 1 + t2 * (3 * k[0] + t2 * (5 * k[1] + t2 * (7 * k[2] + t2 * 9 * k[3])))
+        if g.min() > 0.25:
+            return cam
+    raise RuntimeError("could not sample a fisheye lens")  # practically unreachable
+
+
+def _sample_lens(rng, width_px, height_px, name, scale, lens):
+    if lens == "fisheye":
+        return sample_fisheye_intrinsics(rng, width_px, height_px, name, scale)
+    return sample_intrinsics(rng, width_px, height_px, name, scale)
+
+
 def sample_rig(rng: np.random.Generator, n_cameras: int, width_px: int, height_px: int,
-               scale: float = 1.0) -> Rig:
+               scale: float = 1.0, lens: str = "") -> Rig:
     """Sonar at the origin (small random tilt); one camera anywhere 0.3-1 m from it, or the
-    paper's stereo rig (baseline ~0.74 m, each camera ~0.86 m below-beside the sonar)."""
+    paper's stereo rig (baseline ~0.74 m, each camera ~0.86 m below-beside the sonar), and for
+    three cameras a third 0.25-0.45 m above the pair's middle.
+    ``lens``: "" (pinhole + plumb_bob) or "fisheye" (equidistant)."""
     R_ws = _rot(rng.uniform(-4, 4), rng.uniform(-4, 4), rng.uniform(-2, 2))
     rig = Rig(make_T(R_ws, [0, 0, 0]))
     if n_cameras == 1:
@@ -97,7 +126,7 @@ def sample_rig(rng: np.random.Generator, n_cameras: int, width_px: int, height_p
             if 0.3 <= np.linalg.norm(eye) <= 1.0:
                 break
         target = np.array([rng.uniform(2.0, 4.0), rng.uniform(-0.6, 0.6), eye[2] + rng.uniform(-0.3, 0.5)])
-        rig.cams["cam1"] = (sample_intrinsics(rng, width_px, height_px, "cam1", scale), _camera_pose(rng, eye, target))
+        rig.cams["cam1"] = (_sample_lens(rng, width_px, height_px, "cam1", scale, lens), _camera_pose(rng, eye, target))
         return rig
     b = rng.uniform(0.68, 0.80)
     h = np.sqrt(max(0.86**2 - (b / 2) ** 2, 0.1)) + rng.uniform(-0.05, 0.05)
@@ -106,7 +135,11 @@ def sample_rig(rng: np.random.Generator, n_cameras: int, width_px: int, height_p
     for name, side in (("cam1", 1.0), ("cam2", -1.0)):
         eye = np.array([dx + rng.normal(0, 0.01), side * b / 2, -h + rng.normal(0, 0.01)])
         target = look + rng.normal(0, 0.15, 3)
-        rig.cams[name] = (sample_intrinsics(rng, width_px, height_px, name, scale), _camera_pose(rng, eye, target))
+        rig.cams[name] = (_sample_lens(rng, width_px, height_px, name, scale, lens), _camera_pose(rng, eye, target))
+    if n_cameras == 3:  # a third camera above the middle of the stereo pair (drawn last: pairs unchanged)
+        eye = np.array([dx + rng.normal(0, 0.02), rng.normal(0, 0.05), -h + rng.uniform(0.25, 0.45)])
+        rig.cams["cam3"] = (_sample_lens(rng, width_px, height_px, "cam3", scale, lens),
+                            _camera_pose(rng, eye, look + rng.normal(0, 0.15, 3)))
     return rig
 
 

@@ -1,0 +1,93 @@
+"""Kalibr camchain YAML as an intrinsics file: radtan, equidistant, several cameras, refusals."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import yaml
+
+from calib_core.camera import CameraModel
+from calib_core.errors import SessionError
+from calib_core.export import to_kalibr
+from calib_core.io.intrinsics import load_intrinsics
+
+CHAIN = {
+    "cam0": {"camera_model": "pinhole", "intrinsics": [1100.5, 1101.0, 640.2, 511.7],
+             "distortion_model": "radtan", "distortion_coeffs": [-0.21, 0.08, 0.0004, -0.0002],
+             "resolution": [1280, 1024], "rostopic": "/left/image_raw"},
+    "cam1": {"camera_model": "pinhole", "intrinsics": [460.0, 461.0, 480.0, 300.0],
+             "distortion_model": "equidistant", "distortion_coeffs": [0.05, -0.02, 0.003, -0.0005],
+             "resolution": [960, 600], "rostopic": "/right/image_raw",
+             "T_cn_cnm1": np.eye(4).tolist()},
+}
+
+
+def _write(tmp_path, data, name="camchain.yaml"):
+    p = tmp_path / name
+    p.write_text(yaml.safe_dump(data))
+    return p
+
+
+def test_entry_by_key_and_by_rostopic(tmp_path):
+    p = _write(tmp_path, CHAIN)
+    left = load_intrinsics(p, "cam2", entry="cam0")
+    assert not left.fisheye and (left.width_px, left.height_px) == (1280, 1024)
+    assert np.allclose(left.dist, [-0.21, 0.08, 0.0004, -0.0002, 0.0])
+    assert left.fx == 1100.5 and left.cy == 511.7
+    right = load_intrinsics(p, "right")  # the session names its camera like the topic
+    assert right.fisheye and np.allclose(right.dist, [0.05, -0.02, 0.003, -0.0005])
+
+
+def test_several_cameras_and_no_name_matching_is_refused(tmp_path):
+    """A session camera called cam1 is NOT Kalibr's cam1 (Kalibr counts from cam0)."""
+    p = _write(tmp_path, CHAIN)
+    with pytest.raises(SessionError, match=r"holds 2 cameras .*cam0.*cam1.*'cam1'.*intrinsics_entry"):
+        load_intrinsics(p, "cam1")
+    with pytest.raises(SessionError, match=r"no entry 'cam5' \(it holds 'cam0', 'cam1'\)"):
+        load_intrinsics(p, "cam1", entry="cam5")
+
+
+def test_session_names_the_entry(tmp_path):
+    from calib_core.session import load_session
+
+    (tmp_path / "calib").mkdir()
+    _write(tmp_path / "calib", CHAIN)
+    (tmp_path / "session.yaml").write_text(yaml.safe_dump({
+        "format": "sonar-camera-session/1", "name": "k", "sphere": {"diameter": 0.3},
+        "cameras": {"cam1": {"intrinsics": "calib/camchain.yaml", "intrinsics_entry": "cam0"},
+                    "cam2": {"intrinsics": "calib/camchain.yaml", "intrinsics_entry": "cam1"}},
+        "captures": [{"id": "p01", "cloud": "c.ply", "images": {"cam1": "a.png", "cam2": "b.png"}}]}))
+    s = load_session(tmp_path)
+    assert s.camera_model("cam1").width_px == 1280 and s.camera_model("cam2").fisheye
+
+
+def test_one_camera_chain_needs_no_name(tmp_path):
+    cam = load_intrinsics(_write(tmp_path, {"cam0": CHAIN["cam1"]}))
+    assert cam.fisheye and cam.width_px == 960
+
+
+@pytest.mark.parametrize("change,match", [
+    (dict(camera_model="omni"), "camera_model 'omni' is not supported"),
+    (dict(distortion_model="fov"), "distortion_model 'fov' is not supported"),
+    (dict(intrinsics=[1.0, 2.0, 3.0]), "'intrinsics' has 3 values, expected 4"),
+    (dict(distortion_coeffs=[0.1, float("nan"), 0, 0]), "NaN"),
+    (dict(resolution=[0, 600]), "not plausible"),
+    (dict(intrinsics=[-5.0, 460.0, 480.0, 300.0]), "focal lengths must be positive"),
+])
+def test_bad_entries_are_refused_in_one_line(tmp_path, change, match):
+    p = _write(tmp_path, {"cam0": {**CHAIN["cam1"], **change}})
+    with pytest.raises(SessionError, match=match) as e:
+        load_intrinsics(p)
+    assert str(p) in str(e.value) and "\n" not in str(e.value)
+
+
+def test_round_trip_through_kalibr_export(tmp_path):
+    K = [[900.0, 0, 955.0], [0, 901.0, 540.0], [0, 0, 1]]
+    models = {"cam1": CameraModel(1920, 1080, K, [-0.1, 0.02, 0.001, 0.0005, 0.0]),
+              "cam2": CameraModel(1920, 1080, K, [0.04, -0.01, 0.002, -0.0003], fisheye=True)}
+    calib = {"cameras": {c: {"T_cam_sonar": np.eye(4).tolist()} for c in models}}
+    p = tmp_path / "chain.yaml"
+    p.write_text(to_kalibr(calib, models))
+    for name, m in models.items():
+        back = load_intrinsics(p, name)  # matched by camera_name
+        assert back.fisheye == m.fisheye and np.allclose(back.dist, m.dist) and np.allclose(back.K, m.K)
