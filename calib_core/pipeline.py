@@ -316,7 +316,7 @@ def _sonar_centers(detections: dict) -> dict:
 def _stereo_predictions(data: SessionData, detections: dict, only: set) -> dict:
     """{camera b: {capture: StereoPrediction}} from the better registered camera of each stereo
     pair (:mod:`calib_core.stereo_vouch`); empty without a stereo transform."""
-    from calib_core.solve.calibrate import _stereo_cov
+    from calib_core.solve.calibrate import session_stereo_cov
     from calib_core.solve.rig import find_stereo
     from calib_core.stereo_vouch import stereo_predictions
 
@@ -332,7 +332,7 @@ def _stereo_predictions(data: SessionData, detections: dict, only: set) -> dict:
             continue
         key = f"T_{b}_{a}" if f"T_{b}_{a}" in stereo else f"T_{a}_{b}"
         res_a = regs[a][0]
-        out[b] = stereo_predictions(data.camera(b), find_stereo(stereo, a, b), _stereo_cov(data.session, key)[0],
+        out[b] = stereo_predictions(data.camera(b), find_stereo(stereo, a, b), session_stereo_cov(data.session, key)[0],
                                     res_a.T_cam_sonar, res_a.residual_px, data.camera(a).fx, _sonar_centers(detections), a)
     return out
 

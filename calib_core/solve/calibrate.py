@@ -98,7 +98,7 @@ def sigmas(cov6: np.ndarray) -> dict:
             "sigma_3": {"rotation_deg": 3 * r, "translation_mm": 3 * t}}
 
 
-def _stereo_cov(session, key: str) -> tuple[np.ndarray, bool]:
+def session_stereo_cov(session, key: str) -> tuple[np.ndarray, bool]:
     """Covariance of a stereo transform from session.yaml's optional ``stereo_covariance``
     mapping (same keys as ``stereo``), else the assumed default. Returns (cov, assumed)."""
     raw = (session.raw or {}).get("stereo_covariance") or {}
@@ -168,7 +168,7 @@ def _joint(session, sols, entries, opts, progress, warnings):
     for c in solved[1:]:
         T = find_stereo(session.stereo, ref, c)
         if T is not None:
-            cov, assumed = _stereo_cov(session, f"T_{c}_{ref}")
+            cov, assumed = session_stereo_cov(session, f"T_{c}_{ref}")
             links[c] = Link(T, cov)
             stereo_info[c] = {"T_cam_ref": T, "covariance": cov, "covariance_assumed": assumed}
     if not links:
