@@ -99,7 +99,7 @@ def sigmas(cov6: np.ndarray) -> dict:
             "sigma_3": {"rotation_deg": 3 * r, "translation_mm": 3 * t}}
 
 
-def _stereo_cov(session, ref: str, cam: str, T_cam_ref: np.ndarray) -> tuple[np.ndarray, bool]:
+def session_stereo_cov(session, ref: str, cam: str, T_cam_ref: np.ndarray) -> tuple[np.ndarray, bool]:
     """Covariance of the stereo transform ``T_cam_ref`` from session.yaml's optional
     ``stereo_covariance`` mapping (same keys as ``stereo``; one stated for ``T_<ref>_<cam>`` is
     carried over to the inverse), else the assumed default. Returns (cov, assumed)."""
@@ -118,12 +118,13 @@ def _stereo_link(session, ref: str, cam: str):
     when cam1 itself could not be solved); None when neither."""
     T = find_stereo(session.stereo, ref, cam)
     if T is not None:
-        return (T, *_stereo_cov(session, ref, cam, T), None)
+        return (T, *session_stereo_cov(session, ref, cam, T), None)
     for mid in session.cameras:
         A, B = find_stereo(session.stereo, mid, cam), find_stereo(session.stereo, ref, mid)
         if mid in (ref, cam) or A is None or B is None:
             continue
-        (cov_a, assumed_a), (cov_b, assumed_b) = _stereo_cov(session, mid, cam, A), _stereo_cov(session, ref, mid, B)
+        (cov_a, assumed_a), (cov_b, assumed_b) = (session_stereo_cov(session, mid, cam, A),
+                                                  session_stereo_cov(session, ref, mid, B))
         return A @ B, cov_of_product(A, B, cov_a, cov_b), assumed_a or assumed_b, mid
     return None
 
