@@ -167,3 +167,27 @@ def test_session_refuses_an_odd_intrinsics_entry(tmp_path, value):
         "captures": [{"id": "p01", "cloud": "c.ply", "images": {"cam1": "a.png"}}]}))
     with pytest.raises(SessionError, match="intrinsics_entry must be a short name"):
         load_session(tmp_path)
+
+
+ODD = [None, True, "x", "", 5, -1, 1e300, float("nan"), [], [1], ["a", "b"], [[1, 2], [3]], {"a": 1},
+       [1e308, 1e308, 1, 1], [0.5, 0.5], list(range(200))]
+
+
+def test_any_odd_field_value_is_a_session_error_or_a_model(tmp_path):
+    """Every field of a camchain entry replaced by odd values (wrong types, unhashable, nested,
+    huge, NaN): one SessionError line or a CameraModel, never another exception."""
+    rng = np.random.default_rng(11)
+    fields = ["camera_model", "intrinsics", "distortion_model", "distortion_coeffs", "resolution",
+              "camera_name", "rostopic"]
+    for k in range(150):
+        entry = dict(CHAIN["cam0"])
+        for f in rng.choice(fields, size=int(rng.integers(1, 3)), replace=False):
+            entry[str(f)] = ODD[int(rng.integers(len(ODD)))]
+        p = _write(tmp_path, {"cam0": entry, "cam1": CHAIN["cam1"]}, f"f{k}.yaml")
+        for kw in ({"camera": "left"}, {"camera": "right"}, {"entry": "cam0"}, {}):
+            try:
+                m = load_intrinsics(p, **kw)
+            except SessionError as e:
+                assert "\n" not in str(e)
+            else:
+                assert np.isfinite(m.K).all() and m.width_px > 0 and "\n" not in m.name
