@@ -173,3 +173,23 @@ def test_camera_info_export_names_the_lens_model_it_writes():
     text = to_camera_info(_cam(), "cam1")
     assert yaml.safe_load(text)["distortion_model"] == "equidistant"
     assert "plumb_bob" not in text and "Distortion equidistant" in text
+
+
+@pytest.mark.parametrize("flag,n", [(1, 4), (0, 4), (1, 5)])
+def test_opencv_filestorage_fisheye_model_flag(tmp_path, flag, n):
+    """OpenCV's calibration sample writes ``fisheye_model: 1`` above cv::fisheye's 4 coefficients:
+    they were read as plumb_bob (k1, k2, p1, p2)."""
+    p = tmp_path / "out_camera_data.yml"
+    fs = cv2.FileStorage(str(p), cv2.FILE_STORAGE_WRITE)
+    fs.write("image_width", 1280)
+    fs.write("image_height", 1024)
+    fs.write("fisheye_model", flag)
+    fs.write("camera_matrix", K)
+    fs.write("distortion_coefficients", np.r_[D4, [0.0] * (n - 4)].reshape(-1, 1))
+    fs.release()
+    if n != 4 and flag:
+        with pytest.raises(SessionError, match="fisheye_model: 1 .* 4 distortion values, got 5"):
+            load_intrinsics(p)
+        return
+    cam = load_intrinsics(p)
+    assert cam.fisheye == bool(flag) and np.allclose(cam.dist[:4], D4)

@@ -195,12 +195,16 @@ def _read_opencv_storage(path: Path) -> CameraModel:
         if not (wn.isInt() or wn.isReal()) or not (hn.isInt() or hn.isReal()):
             raise SessionError(path, "image_width and image_height must be numbers")
         w, h = int(wn.real()), int(hn.real())
+        fn = node("fisheye_model")  # OpenCV's calibration sample writes it (1: cv::fisheye's k1..k4)
+        fisheye = fn is not None and (fn.isInt() or fn.isReal()) and fn.real() != 0
     finally:
         fs.release()
     if not np.isfinite(K).all() or not np.isfinite(dist).all():
         raise SessionError(path, "camera matrix or distortion holds NaN or infinite values")
     _check_K(path, K, w, h)
-    return CameraModel(w, h, K, dist, name=path.stem)
+    if fisheye and dist.size != 4:
+        raise SessionError(path, f"fisheye_model: 1 (OpenCV's fisheye model) has 4 distortion values, got {dist.size}")
+    return CameraModel(w, h, K, dist, name=path.stem, fisheye=fisheye)
 
 
 def camera_info_dict(cam: CameraModel, name: str | None = None) -> dict:
