@@ -84,20 +84,17 @@ def _check_entry(path: Path, what: str, e, dim: int) -> dict:
 
 def _check_cov(path: Path, what: str, e: dict, dim: int) -> None:
     """The entry's covariance (``cov_m2`` 3x3 for the sonar, ``cov_px2`` 2x2 for an image), flat or
-    as rows: numbers (NaN allowed: the solver then assumes its default), else one clear line."""
+    as rows: numbers (NaN and infinities allowed, as a tool may have written them: the solver then
+    assumes its default), else one clear line."""
     key = "cov_m2" if dim == 3 else "cov_px2"
     v = e.get(key)
     if v is None:
         return
     rows = v if isinstance(v, list) and len(v) == dim and all(isinstance(r, list) for r in v) else [v]
     flat = [x for r in rows if isinstance(r, list) for x in r]
-    if len(flat) != dim * dim or not all(_finite_number(x) or _nan(x) for x in flat):
+    if len(flat) != dim * dim or not all(_finite_number(x) or isinstance(x, float) for x in flat):
         raise SessionError(path, f"{what}.{key} must be a {dim}x{dim} matrix of numbers (flat or as rows), "
                                  f"got {short_repr(v)}")
-
-
-def _nan(v) -> bool:
-    return isinstance(v, float) and math.isnan(v)
 
 
 # extra keys that the tools read back as geometry (the sonar-guided second look, the choice among

@@ -112,7 +112,8 @@ def test_invalid_files(session, text, match):
 def test_covariances_as_the_tools_and_people_write_them(session):
     caps = {"p01": {"sonar": {"status": "accepted", "center": [0, 0, 1], "cov_m2": [[4e-6, 0, 0], [0, 4e-6, 0],
                                                                                    [0, 0, "1e-5"]]},
-                    "cam1": {"status": "auto", "center": [1, 2], "cov_px2": [0.25, 0, 0, float("nan")]}}}
+                    "cam1": {"status": "auto", "center": [1, 2], "cov_px2": [0.25, 0, 0, float("nan")]},
+                    "cam2": {"status": "auto", "center": [1, 2], "cov_px2": [float("inf"), 0, 0, 1]}}}
     detections_path(session).write_text(yaml.safe_dump({"format": DETECTIONS_FORMAT, "captures": caps}))
     d = load_detections(session)["p01"]
     assert d["sonar"]["cov_m2"][2][2] == "1e-5" and np.isnan(d["cam1"]["cov_px2"][3])
