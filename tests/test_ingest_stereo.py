@@ -55,3 +55,27 @@ def test_two_camera_bag_gets_stereo_from_tf_static(tmp_path, capsys):
     assert sorted(s.cameras) == ["cam1", "cam2"]
     np.testing.assert_allclose(s.stereo["T_cam2_cam1"], T21, atol=1e-7)
     assert yaml.safe_load((out / "session.yaml").read_text())["source"]["stereo_from"] == "/tf_static"
+
+
+def test_three_camera_bag_ties_each_camera_to_the_first(tmp_path):
+    """A third camera's /tf_static link was dropped: only exactly two cameras got a stereo key."""
+    T21, T31 = _T(3), _T(4)
+    bag = tmp_path / "three.bag"
+    rng = np.random.default_rng(0)
+    with BagWriter(bag, "ros1") as w:
+        ts = w.typestore
+        w.write("/tf_static", rosmsg.TF_STATIC, NS // 2, tf_static_msg(ts, 0, "cam2_optical", "cam1_optical", T21, True))
+        w.write("/tf_static", rosmsg.TF_STATIC, NS // 2, tf_static_msg(ts, 0, "cam3_optical", "cam1_optical", T31, True))
+        for i in range(4):
+            t = (1 + i) * NS
+            w.write("/sonar/points", rosmsg.POINTCLOUD2, t, rosmsg.cloud_msg(ts, t, "sonar", rng.normal(size=(20, 3)), None, True))
+            for c in ("cam1", "cam2", "cam3"):
+                w.write(f"/{c}/camera_info", rosmsg.CAMERA_INFO, t, rosmsg.info_msg(ts, t, f"{c}_optical", CAM, True))
+                w.write(f"/{c}/image_raw", rosmsg.IMAGE, t,
+                        rosmsg.image_msg(ts, t, f"{c}_optical", np.full((48, 64, 3), 80, np.uint8), True))
+    out = tmp_path / "s"
+    assert main(["import", str(bag), "--out", str(out), "--diameter", "0.2", "--split", "message"]) == 0
+    s = load_session(out)
+    assert sorted(s.cameras) == ["cam1", "cam2", "cam3"] and set(s.stereo) == {"T_cam2_cam1", "T_cam3_cam1"}
+    np.testing.assert_allclose(s.stereo["T_cam2_cam1"], T21, atol=1e-7)
+    np.testing.assert_allclose(s.stereo["T_cam3_cam1"], T31, atol=1e-7)

@@ -114,16 +114,21 @@ def _image(reader, path, conn, t, t0, raw, i, cam, keeper: FrameKeeper, bg, fram
 
 
 def _stereo(reader, path, rows, cams, frame_ids: dict) -> dict:
-    """``{T_<cam2>_<cam1>: 4x4}`` from /tf_static when there are two cameras whose frames it links."""
+    """``{T_<cam>_<cam1>: 4x4}`` from /tf_static: every other camera whose frame it links to the
+    first camera's (two cameras: the stereo pair; three or more: each tied to the first)."""
     from calib_core.ingest.tf import edges_from_msgs, transform_between
 
     tf_conns = [c for c in reader.connections if c.msgtype == rosmsg.TF_STATIC and c.topic.endswith("tf_static")]
-    if len(cams) != 2 or not tf_conns or not all(c.name in frame_ids for c in cams):
+    if len(cams) < 2 or not tf_conns or cams[0].name not in frame_ids:
         return {}
     msgs = [_decode(reader, path, c, t, reader.start_time, raw, lambda m: m) for c, t, raw in _messages(reader, path, tf_conns)]
-    a, b = cams
-    T = transform_between(edges_from_msgs(msgs), frame_ids[b.name], frame_ids[a.name])
-    return {} if T is None else {f"T_{b.name}_{a.name}": [[round(float(v), 9) for v in row] for row in T]}
+    edges, a = edges_from_msgs(msgs), cams[0]
+    out = {}
+    for b in cams[1:]:
+        T = transform_between(edges, frame_ids[b.name], frame_ids[a.name]) if b.name in frame_ids else None
+        if T is not None:
+            out[f"T_{b.name}_{a.name}"] = [[round(float(v), 9) for v in row] for row in T]
+    return out
 
 
 def _camera_models(reader, path, cams, opts: ImportOptions, conns) -> dict:
