@@ -20,7 +20,6 @@ import numpy as np
 
 from calib_core import __version__
 from calib_core.errors import SessionError
-from calib_core.geometry import invert_T
 from calib_core.results import CALIBRATION_FORMAT
 from calib_core.solve.consistency import consistency, consistency_phrase, is_warning
 from calib_core.solve.stated import camera_data_from
@@ -28,7 +27,8 @@ from calib_core.solve.refine import ROBUST_LOSSES, Link
 from calib_core.solve.scale import (diameter_sigma, outline_sigma_px, range_model, range_rel_sigma, size_route_caution,
                                    stereo_limit_note)
 from calib_core.solve.shared_scale import shared_scale
-from calib_core.solve.rig import cov_of_inverse, cov_of_product, default_stereo_cov, find_stereo, solve_rig, table_i
+from calib_core.solve.rig import find_stereo, solve_rig, table_i
+from calib_core.solve.stereo_cov import stereo_link
 from calib_core.solve.single import CameraSolution, solve_camera
 
 
@@ -99,48 +99,6 @@ def sigmas(cov6: np.ndarray) -> dict:
             "sigma_3": {"rotation_deg": 3 * r, "translation_mm": 3 * t}}
 
 
-def session_stereo_cov(session, ref: str, cam: str, T_cam_ref: np.ndarray) -> tuple[np.ndarray, bool]:
-    """Covariance of the stereo transform ``T_cam_ref`` from session.yaml's optional
-    ``stereo_covariance`` mapping (same keys as ``stereo``; one stated for ``T_<ref>_<cam>`` is
-    carried over to the inverse), else the assumed default. Returns (cov, assumed)."""
-    raw = (session.raw or {}).get("stereo_covariance") or {}
-    key, inverse = f"T_{cam}_{ref}", f"T_{ref}_{cam}"
-    if isinstance(raw, dict) and key not in raw and inverse in raw:
-        return cov_of_inverse(invert_T(T_cam_ref), _stated_stereo_cov(session, raw, inverse)), False
-    if isinstance(raw, dict) and key in raw:
-        return _stated_stereo_cov(session, raw, key), False
-    return default_stereo_cov(), True
-
-
-def _stereo_link(session, ref: str, cam: str):
-    """(T_cam_ref, covariance, assumed, via) from session.yaml's stereo transforms: stated for the
-    pair (via None), else chained through one other camera ``via`` (a third camera tied to cam1
-    when cam1 itself could not be solved); None when neither."""
-    T = find_stereo(session.stereo, ref, cam)
-    if T is not None:
-        return (T, *session_stereo_cov(session, ref, cam, T), None)
-    for mid in session.cameras:
-        A, B = find_stereo(session.stereo, mid, cam), find_stereo(session.stereo, ref, mid)
-        if mid in (ref, cam) or A is None or B is None:
-            continue
-        (cov_a, assumed_a), (cov_b, assumed_b) = (session_stereo_cov(session, mid, cam, A),
-                                                  session_stereo_cov(session, ref, mid, B))
-        return A @ B, cov_of_product(A, B, cov_a, cov_b), assumed_a or assumed_b, mid
-    return None
-
-
-def _stated_stereo_cov(session, raw: dict, key: str) -> np.ndarray:
-    """stereo_covariance.<key> as a symmetric positive definite 6x6 (else one clear line)."""
-    try:
-        C = np.asarray(raw[key], float).reshape(6, 6)
-    except (TypeError, ValueError, OverflowError):
-        raise SessionError(session.manifest_path, f"stereo_covariance.{key} must be a 6x6 matrix") from None
-    C = 0.5 * (C + C.T)
-    if not np.isfinite(C).all() or np.any(np.linalg.eigvalsh(C) <= 0):
-        raise SessionError(session.manifest_path, f"stereo_covariance.{key} must be positive definite")
-    return C
-
-
 def _camera_entry(sol: CameraSolution, skipped: dict, intrinsics_rel: str) -> dict:
     cons = consistency(sol.chi2, sol.dof, f"{sol.name} (independent solve)")
     return {
@@ -193,7 +151,7 @@ def _joint(session, sols, entries, opts, progress, warnings):
     ref = solved[0]
     links, stereo_info = {}, {}
     for c in solved[1:]:
-        link = _stereo_link(session, ref, c)
+        link = stereo_link(session, ref, c)
         if link is not None:
             T, cov, assumed, via = link
             links[c] = Link(T, cov)

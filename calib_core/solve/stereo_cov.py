@@ -1,0 +1,53 @@
+"""The covariance of a session's stereo transform: stated in session.yaml (for either direction of
+the pair), or assumed; and the link a joint solve takes between two cameras (stated for the pair,
+or chained through one other camera)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from calib_core.errors import SessionError
+from calib_core.geometry import invert_T
+from calib_core.solve.rig import cov_of_inverse, cov_of_product, default_stereo_cov, find_stereo
+
+
+def session_stereo_cov(session, ref: str, cam: str, T_cam_ref: np.ndarray) -> tuple[np.ndarray, bool]:
+    """Covariance of the stereo transform ``T_cam_ref`` from session.yaml's optional
+    ``stereo_covariance`` mapping (same keys as ``stereo``; one stated for ``T_<ref>_<cam>`` is
+    carried over to the inverse), else the assumed default. Returns (cov, assumed)."""
+    raw = (session.raw or {}).get("stereo_covariance") or {}
+    key, inverse = f"T_{cam}_{ref}", f"T_{ref}_{cam}"
+    if isinstance(raw, dict) and key not in raw and inverse in raw:
+        return cov_of_inverse(invert_T(T_cam_ref), _stated(session, raw, inverse)), False
+    if isinstance(raw, dict) and key in raw:
+        return _stated(session, raw, key), False
+    return default_stereo_cov(), True
+
+
+def stereo_link(session, ref: str, cam: str):
+    """(T_cam_ref, covariance, assumed, via) from session.yaml's stereo transforms: stated for the
+    pair (via None), else chained through one other camera ``via`` (a third camera tied to cam1
+    when cam1 itself could not be solved); None when neither."""
+    T = find_stereo(session.stereo, ref, cam)
+    if T is not None:
+        return (T, *session_stereo_cov(session, ref, cam, T), None)
+    for mid in session.cameras:
+        A, B = find_stereo(session.stereo, mid, cam), find_stereo(session.stereo, ref, mid)
+        if mid in (ref, cam) or A is None or B is None:
+            continue
+        (cov_a, assumed_a), (cov_b, assumed_b) = (session_stereo_cov(session, mid, cam, A),
+                                                  session_stereo_cov(session, ref, mid, B))
+        return A @ B, cov_of_product(A, B, cov_a, cov_b), assumed_a or assumed_b, mid
+    return None
+
+
+def _stated(session, raw: dict, key: str) -> np.ndarray:
+    """stereo_covariance.<key> as a symmetric positive definite 6x6 (else one clear line)."""
+    try:
+        C = np.asarray(raw[key], float).reshape(6, 6)
+    except (TypeError, ValueError, OverflowError):
+        raise SessionError(session.manifest_path, f"stereo_covariance.{key} must be a 6x6 matrix") from None
+    C = 0.5 * (C + C.T)
+    if not np.isfinite(C).all() or np.any(np.linalg.eigvalsh(C) <= 0):
+        raise SessionError(session.manifest_path, f"stereo_covariance.{key} must be positive definite")
+    return C
