@@ -215,9 +215,9 @@ def _sweep_one(root: Path, dump: Path | None = None) -> tuple[list, list, float,
         else:
             errs.append((np.asarray(e["center"], float) - truth, truth))
             diam.append(float(e.get("diameter_m") or np.nan) / float(gt["sphere_diameter_m"]))
-            if str(e.get("resolved_by", "")).startswith("outline"):  # two candidates told apart by their outlines
+            if str(e.get("resolved_by", "")).startswith(("outline", "occlusion")):  # two candidates told apart
                 err = float(np.linalg.norm(errs[-1][0]))
-                refused.append((cid, f"(found) by the outlines, {'right' if err < 0.02 else 'WRONG'} ({err * 1000:.1f} mm)"))
+                refused.append((cid, f"(found) by the {str(e['resolved_by']).split(':')[0]}, {'right' if err < 0.02 else 'WRONG'} ({err * 1000:.1f} mm)"))
     if dump is not None:
         dump.mkdir(parents=True, exist_ok=True)
         keep = ("status", "center", "reason", "two_candidates", "other_candidates", "diameter_m", "candidate_evidence")

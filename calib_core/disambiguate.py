@@ -58,6 +58,8 @@ class Resolution:
     sigma_px: {capture_id: px} for a registration on exactly 3 plain detections: how far its
         projection of that capture's sonar centre moves when each plain detection's range is off
         by RANGE_REL_SIGMA (root sum of squares), for the checks and the predicted places.
+    rough_agree: rough candidates (partly hidden outlines) within the 3D tolerance of the
+        registration: captures that agree with it without counting as ``support``.
     """
 
     chosen: dict = field(default_factory=dict)
@@ -68,11 +70,12 @@ class Resolution:
     range_rel_rms: float = float("nan")
     checks_px: dict = field(default_factory=dict)
     sigma_px: dict = field(default_factory=dict)
+    rough_agree: int = 0
 
 
 def resolve_candidates(cam: CameraModel, centers_sonar_m: dict[str, np.ndarray],
                        candidates: dict[str, np.ndarray], iterations: int = 400,
-                       seed: int = 0, predict_for=(), rough=()) -> Resolution:
+                       seed: int = 0, predict_for=(), rough=(), range_free=()) -> Resolution:
     """Pick the target among each capture's image candidates.
 
     Args:
@@ -85,6 +88,11 @@ def resolve_candidates(cam: CameraModel, centers_sonar_m: dict[str, np.ndarray],
             the registration predicts where to look again.
         rough: capture ids whose one candidate is rough (a partly hidden outline): it takes part
             in the consensus, but not in the refit of the registration nor in its ``support``.
+        range_free: capture ids whose candidates' ranges are not measured (a look at the predicted
+            place takes the predicted size: its range follows the registration that predicted
+            it). Their uv is informative and their range is not: they agree when the registered
+            centre lies near their ray (the same tolerance across it, none along it), enter the
+            refit at the registered range along their ray, and stay out of ``range_rel_rms``.
 
     Returns:
         a :class:`Resolution`: the ambiguous captures (K > 1) that the registration decides
@@ -96,7 +104,7 @@ def resolve_candidates(cam: CameraModel, centers_sonar_m: dict[str, np.ndarray],
         return Resolution()
     X = {c: np.asarray(centers_sonar_m[c], float) for c in ids}
     P = {c: candidate_points_cam_m(cam, candidates[c]) for c in ids}
-    tol = {c: 0.05 * np.asarray(candidates[c], float)[:, 2] + 0.03 for c in ids}
+    tol = {c: _tolerances(candidates[c], c in set(range_free)) for c in ids}
     best_T, n_in = _ransac(ids, X, P, tol, iterations, seed)
     if best_T is None or n_in < 4:
         return Resolution()
@@ -105,6 +113,7 @@ def resolve_candidates(cam: CameraModel, centers_sonar_m: dict[str, np.ndarray],
     best_T, checks_px = _checked_on_three(cam, best_T, plain, [c for c in ids if c in set(rough)], X, P, tol, candidates)
     out = Resolution(T_cam_sonar=best_T, checks_px=checks_px)
     _agreement(out, cam, plain, X, P, tol, candidates)
+    out.rough_agree = len(_single_inliers(best_T, [c for c in ids if c in set(rough)], X, P, tol))
     for c in ids:
         _decide(out, cam, c, best_T[:3, :3] @ X[c] + best_T[:3, 3], P[c], tol[c])
     for c in predict_for:
@@ -117,6 +126,37 @@ def resolve_candidates(cam: CameraModel, centers_sonar_m: dict[str, np.ndarray],
         targets = {c: np.asarray(centers_sonar_m[c], float) for c in {*checks_px, *out.predicted_uvr}}
         out.sigma_px = _three_point_sigma_px(cam, best_T, _single_inliers(best_T, plain, X, P, tol), X, P, targets)
     return out
+
+
+def _tolerances(uvr, range_free: bool) -> np.ndarray:
+    """(K,2) per candidate: the tolerance across its ray and along it (m); along it none (inf)
+    for a candidate whose range is not measured."""
+    t = 0.05 * np.asarray(uvr, float).reshape(-1, 3)[:, 2] + 0.03
+    return np.column_stack([t, np.full_like(t, np.inf) if range_free else t])
+
+
+def _scaled(P_c: np.ndarray, X_cam: np.ndarray, tol_c: np.ndarray) -> np.ndarray:
+    """(K,) distance of each candidate to the registered centre ``X_cam`` in units of its
+    tolerance, across its ray and along it (isotropic when both tolerances are equal)."""
+    diff = X_cam[None] - P_c
+    ray = P_c / np.linalg.norm(P_c, axis=1, keepdims=True)
+    along = np.sum(diff * ray, axis=1)
+    across = np.linalg.norm(diff - along[:, None] * ray, axis=1)
+    return np.sqrt((across / tol_c[:, 0]) ** 2 + (along / tol_c[:, 1]) ** 2)
+
+
+def _fit_points(T: np.ndarray, inl, X, P, tol) -> np.ndarray:
+    """The camera-frame points a refit on the plain detections ``inl`` aims at: each one's own
+    candidate, or for a candidate whose range is not measured the point of its ray at the range
+    of the registered centre (its uv counts, its range does not)."""
+    out = []
+    for c in inl:
+        p = P[c][0]
+        if np.isinf(tol[c][0, 1]):
+            ray = p / np.linalg.norm(p)
+            p = ray * float(ray @ (T[:3, :3] @ X[c] + T[:3, 3]))
+        out.append(p)
+    return np.array(out)
 
 
 # how far off a plain detection's range (from the whole outline's apparent size) may be, 1 sigma:
@@ -145,8 +185,7 @@ def _three_point_sigma_px(cam: CameraModel, T: np.ndarray, inl, X, P, targets: d
 
 def _single_inliers(T, ids, X, P, tol) -> list:
     """Captures with one candidate within tolerance of the registered sonar centre."""
-    return [c for c in ids if len(P[c]) == 1
-            and np.linalg.norm(P[c][0] - (T[:3, :3] @ X[c] + T[:3, 3])) <= tol[c][0]]
+    return [c for c in ids if len(P[c]) == 1 and _scaled(P[c], T[:3, :3] @ X[c] + T[:3, 3], tol[c])[0] <= 1.0]
 
 
 def _refined(cam: CameraModel, T: np.ndarray, ids, X, P, tol, candidates) -> np.ndarray:
@@ -154,7 +193,7 @@ def _refined(cam: CameraModel, T: np.ndarray, ids, X, P, tol, candidates) -> np.
     inl = _single_inliers(T, ids, X, P, tol)
     if len(inl) < 4:
         return T
-    T2 = _rigid_fit(np.array([X[c] for c in inl]), np.array([P[c][0] for c in inl]))
+    T2 = _rigid_fit(np.array([X[c] for c in inl]), _fit_points(T, inl, X, P, tol))
     return T if T2 is None else T2
 
 
@@ -173,7 +212,7 @@ def _checked_on_three(cam: CameraModel, T: np.ndarray, plain, rough, X, P, tol, 
     inl = _single_inliers(T, plain, X, P, tol)
     if len(inl) != 3 or not rough:
         return T, {}
-    T3 = _rigid_fit(np.array([X[c] for c in inl]), np.array([P[c][0] for c in inl]))
+    T3 = _rigid_fit(np.array([X[c] for c in inl]), _fit_points(T, inl, X, P, tol))
     if T3 is None or len(_single_inliers(T3, inl, X, P, tol)) != 3:
         return T, {}
     agree = _single_inliers(T3, rough, X, P, tol)
@@ -194,8 +233,9 @@ def _agreement(out: Resolution, cam: CameraModel, ids, X, P, tol, candidates) ->
         uv = cam.project(X_cam)
         d = np.linalg.norm(uv - np.array([np.asarray(candidates[c], float)[0, :2] for c in inl]), axis=1)
         out.residual_px = float(np.sqrt(np.mean(d ** 2)))
+        measured = np.array([np.isfinite(tol[c][0, 1]) for c in inl])
         rel = np.linalg.norm(X_cam, axis=1) / np.array([float(np.asarray(candidates[c], float)[0, 2]) for c in inl]) - 1
-        out.range_rel_rms = float(np.sqrt(np.mean(rel ** 2)))
+        out.range_rel_rms = float(np.sqrt(np.mean(rel[measured] ** 2))) if measured.any() else float("nan")
 
 
 def _ransac(ids: list, X: dict, P: dict, tol: dict, iterations: int, seed: int) -> tuple:
@@ -212,7 +252,7 @@ def _ransac(ids: list, X: dict, P: dict, tol: dict, iterations: int, seed: int) 
             continue
         n_in, cost = 0, 0.0
         for c in ids:
-            d = np.linalg.norm(P[c] - (T[:3, :3] @ X[c] + T[:3, 3]), axis=1) / tol[c]
+            d = _scaled(P[c], T[:3, :3] @ X[c] + T[:3, 3], tol[c])
             n_in += bool(d.min() <= 1.0)
             cost += min(d.min(), 1.0)
         if (n_in, -cost) > (best_key[0], -best_key[1]):
@@ -223,7 +263,7 @@ def _ransac(ids: list, X: dict, P: dict, tol: dict, iterations: int, seed: int) 
 def _decide(out: Resolution, cam: CameraModel, c: str, X_cam: np.ndarray, P_c: np.ndarray, tol_c: np.ndarray) -> None:
     """Capture ``c``'s target among its candidates ``P_c`` given the registered sonar centre
     ``X_cam`` (into ``out.chosen``), or a place to look again (``out.predicted_uvr``)."""
-    d = np.linalg.norm(P_c - X_cam, axis=1) / tol_c
+    d = _scaled(P_c, X_cam, tol_c)
     order = np.argsort(d)
     if len(P_c) >= 2 and d[order[0]] <= 1.0 and d[order[1]] > 2.0:  # clearly one, clearly not the other
         out.chosen[c] = int(order[0])

@@ -63,3 +63,27 @@ def test_no_round_outline_read_from_several_edges_in_a_ball_free_scene(kind, see
     case = render_case(kind, seed, 0.5, with_ball=False)
     det = detect_sphere_in_image(case.image, case.cam, case.radius_m)
     assert not det.found, (det.center_uv_px, det.score)
+
+
+@pytest.mark.parametrize("seed", [1019, 1034])
+def test_heavily_smeared_ball_is_read_at_the_ramps_middle(seed):
+    """11-14 px of blur: the sharp scene seen through the smear makes the gradient peaks along
+    the outline's normals land anywhere on the ramp ("outline not round" before the twelfth
+    round); the profiles smoothed along the normals peak at the ramp's middle."""
+    case = render_case("motion", seed, 0.5)
+    det = detect_sphere_in_image(case.image, case.cam, case.radius_m)
+    assert det.found, det.reason
+    err = np.asarray(det.center_uv_px) - case.true_uv_px
+    assert np.hypot(*err) < 1.0
+    assert det.extras["edge_width_px"] > 2 * SHARP_EDGE_WIDTH_PX - 1.0  # the smear's width, not a texture peak's
+    cov = np.asarray(det.cov_uv_px2)
+    assert float(err @ np.linalg.solve(cov, err)) < 9.0
+
+
+@pytest.mark.parametrize("kind,seed", [("motion", 1034), ("glossy", 1018), ("clutter", 1017)])
+def test_smoothed_reading_makes_no_ball_of_ball_free_texture(kind, seed):
+    """Smoothing makes any textured blob rounder: in these ball-free scenes an unguarded
+    smoothed reading found a small round patch (r 14-15 px), or a shaded patch whose "edge"
+    was half its radius wide (clutter s1017)."""
+    case = render_case(kind, seed, 0.5, with_ball=False)
+    assert not detect_sphere_in_image(case.image, case.cam, case.radius_m).found

@@ -229,3 +229,73 @@ def test_three_plain_detections_with_poor_ranges_are_not_trusted_far_away():
                 refused += 1
     assert trusted and refused >= 10
     assert max(trusted) < 5.0
+
+
+def test_an_outline_far_from_a_three_point_registration_where_it_is_unknown_does_not_refute_it():
+    """lidar-chair s45: 3 outlines 3.4-7 px from a 3-point registration confirm it; a 4th, 11 px
+    off where the registration's own sigma is 116 px (far from its 3 points), said nothing about it
+    but made it untrusted everywhere. Where its sigma is small, the same 11 px refute it."""
+    from calib_core.disambiguate import Resolution
+    from calib_core.pipeline import _checked, _trusted
+
+    T = np.eye(4)
+    checks = {"p02": 5.4, "p03": 7.0, "p06": 3.4, "p07": 11.2}
+    sigma = {"p02": 52.6, "p03": 41.7, "p06": 20.7, "p07": 116.4, "p01": 103.8}
+    res = Resolution(T_cam_sonar=T, support=3, residual_px=0.5, range_rel_rms=0.001, checks_px=checks, sigma_px=sigma)
+    assert _checked(res)
+    assert _trusted(res, 7, "p06")  # expected error there 3.1 px
+    assert not _trusted(res, 7, "p07")  # far from the checks: not looked at in this round
+    res.sigma_px = dict(sigma, p07=5.0)
+    assert not _checked(res)
+
+
+def test_partly_hidden_outlines_that_agree_count_for_the_registration():
+    """4 plain detections and 3 partly hidden outlines that agree, of 7 captures with candidates:
+    before, 4 < 0.6 x 7 and the registration was not trusted (s45's second round)."""
+    from calib_core.pipeline import _trusted
+
+    rng = np.random.default_rng(11)
+    cam, X_cam, X_sonar, uv, rng_m = _registration_case(8, rng)
+    ids = [f"p{i}" for i in range(8)]
+    cands = {c: np.array([[*(uv[i] + rng.normal(0, 0.3, 2)), rng_m[i] * (1 + rng.normal(0, 0.005))]])
+             for i, c in enumerate(ids[:7])}
+    rough = ids[4:7]
+    res = resolve_candidates(cam, dict(zip(ids, X_sonar)), cands, predict_for=[*rough, "p7"], rough=rough)
+    assert res.support == 4 and res.rough_agree == 3
+    assert _trusted(res, len(cands), "p7")
+    u, v, _ = res.predicted_uvr["p7"]
+    assert np.hypot(u - uv[7][0], v - uv[7][1]) < 3.0
+    # outlines that do not agree (the ball elsewhere) still count against it
+    for i, c in enumerate(rough, start=4):
+        cands[c] = np.array([[uv[i][0] + 200.0, uv[i][1], rng_m[i] * 0.7]])
+    res = resolve_candidates(cam, dict(zip(ids, X_sonar)), cands, predict_for=[*rough, "p7"], rough=rough)
+    assert res.rough_agree == 0 and not _trusted(res, len(cands), "p7")
+
+
+def test_a_looks_range_is_left_out_of_the_agreement():
+    """A look at the predicted place takes the predicted size, so its range follows the registration
+    that predicted it: only its uv is evidence. Looks whose uv is right agree by their ray even
+    when their range followed a prediction 8 % off, and do not enter the range RMS; a look whose
+    uv is off does not agree, whatever its range."""
+    from calib_core.pipeline import _trusted
+
+    rng = np.random.default_rng(12)
+    cam, X_cam, X_sonar, uv, rng_m = _registration_case(9, rng)
+    ids = [f"p{i}" for i in range(9)]
+    cands = {c: np.array([[*(uv[i] + rng.normal(0, 0.3, 2)), rng_m[i] * (1 + rng.normal(0, 0.005))]])
+             for i, c in enumerate(ids)}
+    looks = ids[4:8]
+    for i, c in enumerate(looks, start=4):  # uv right, range from a prediction 8 % off
+        cands[c][0, 2] = rng_m[i] * 1.08
+    cands["p8"] = np.array([[uv[8][0] + 100.0, uv[8][1], rng_m[8]]])  # uv off, range right
+    centres = dict(zip(ids, X_sonar))
+    before = resolve_candidates(cam, centres, cands)
+    res = resolve_candidates(cam, centres, cands, range_free=[*looks, "p8"])
+    # before: the followed ranges bent the refit (7 px RMS on the plain detections) and its prediction
+    bu, bv, _ = before.predicted_uvr["p8"]
+    assert before.residual_px > 3.0 and np.hypot(bu - uv[8][0], bv - uv[8][1]) > 3.0
+    assert res.support == 8 and "p8" in res.predicted_uvr and res.residual_px < 1.0
+    assert res.range_rel_rms < 0.01  # over the 4 measured ranges only
+    assert _trusted(res, len(cands), "p8")
+    u, v, _ = res.predicted_uvr["p8"]
+    assert np.hypot(u - uv[8][0], v - uv[8][1]) < 2.0

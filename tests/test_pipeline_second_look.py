@@ -34,7 +34,7 @@ def _capture(image_entry: dict) -> dict:
 @pytest.fixture
 def stand_ins(monkeypatch):
     """A registration that sends every capture back to UVR, and a refit that finds the ball there."""
-    def resolve(cam, centers, cands, predict_for=(), rough=()):
+    def resolve(cam, centers, cands, predict_for=(), rough=(), range_free=()):
         return Resolution(predicted_uvr={c: UVR for c in centers})
 
     monkeypatch.setattr(disambiguate, "resolve_candidates", resolve)
@@ -71,10 +71,10 @@ def test_a_failed_look_keeps_the_first_detections_own_reason(monkeypatch):
                         lambda *a, **k: ImageDetection(found=False, reason=look, method="ellipse-exact"))
     res = Resolution(T_cam_sonar=np.eye(4), support=5, residual_px=1.0, range_rel_rms=0.01)
     fresh = {"status": "auto", "reason": "outline 45 % hidden or too faint at (3, 4)"}
-    first = pipeline._look_at_prediction(_data(), "c1", "cam1", UVR, res, fresh, {})
+    first = pipeline._look_at_prediction(_data(), "c1", "cam1", UVR, (res.residual_px, pipeline._registration_phrase(res)), fresh, {})
     assert first["reason"] == look and first["first_reason"] == fresh["reason"]
     # the same failed entry, reused by a later run (its fingerprint still matches) and looked at again
-    again = pipeline._look_at_prediction(_data(), "c1", "cam1", UVR, res, first, {})
+    again = pipeline._look_at_prediction(_data(), "c1", "cam1", UVR, (res.residual_px, pipeline._registration_phrase(res)), first, {})
     assert again["reason"] == look and again["first_reason"] == fresh["reason"]
 
 
@@ -88,7 +88,7 @@ def test_a_look_at_another_range_is_counted_under_one_plain_kind(monkeypatch):
     for rng_m in (3.1, 1.4):  # outlines found at the predicted place, but far off the predicted 2 m
         monkeypatch.setattr(predicted, "detect_at_prediction", lambda *a, r=rng_m, **k: ImageDetection(
             found=True, center_uv_px=np.array(UVR[:2]), range_m=r, method="ellipse-exact"))
-        e = pipeline._look_at_prediction(_data(), "c1", "cam1", UVR, res, {"status": "auto", "reason": "no round outline"}, {})
+        e = pipeline._look_at_prediction(_data(), "c1", "cam1", UVR, (res.residual_px, pipeline._registration_phrase(res)), {"status": "auto", "reason": "no round outline"}, {})
         assert e.get("center") is None and f"{rng_m:.2f} m" in e["reason"]
         reasons.append(e["reason"])
     # the CLI's summary groups reasons by kind: numbers dropped, no stray brackets or units

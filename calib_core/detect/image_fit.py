@@ -13,6 +13,7 @@ from dataclasses import dataclass, field
 
 import cv2
 import numpy as np
+from scipy.ndimage import gaussian_filter1d
 
 from calib_core.camera import CameraModel
 from calib_core.detect.image_cone import (ConeFit, centre_uv_and_cov, fit_cone, normalize_near,
@@ -225,7 +226,10 @@ def _several_held(sig: _Signal, res: CandidateFit, R: float, outside_bad: float)
     limit (0.2) unless it is the very clean, mostly visible outline _judge lets stand in
     clutter, and without a background one hue inside all along the outline."""
     fit = res.fit
-    if res.support < TIGHT_MIN_SUPPORT or fit.sigma_px > TIGHT_RMS_FRACTION * clean_rms_px(R):
+    # (the tight standard relative to the roundness limit of the outline's edge width: a
+    # blurred edge's midpoint scatters more than a sharp one's)
+    limit = outline_rms_limit_px(R, res.extras.get("edge_width_px", np.nan))
+    if res.support < TIGHT_MIN_SUPPORT or fit.sigma_px > TIGHT_RMS_FRACTION * limit:
         return False
     very_clean = res.support >= 0.7 and fit.sigma_px <= 0.35 * clean_rms_px(R)
     if outside_bad > 0.2 and not very_clean:
@@ -350,7 +354,11 @@ def _judge(cam, res: CandidateFit, R: float, outside_bad: float, with_background
 
 
 def _pass2(cam, sig, fit1: ConeFit, R: float, a_range_rad, rng):
-    """Edges along the normals of ``fit1``'s outline, refitted: (fit, used mask, strengths, K)."""
+    """Edges along the normals of ``fit1``'s outline, refitted: (fit, used mask, strengths, K,
+    edge widths). When that outline is not round for its edge width, the same normals are read
+    again on profiles smoothed along them (BLUR_SCALES_PX): a motion-smeared edge is a ramp
+    whose gradient is a low plateau, studded with the sharp edges of the still scene seen
+    through the ramp; its smoothed gradient peaks at the ramp's middle, where the outline is."""
     sil = silhouette_uv(cam, fit1.w, fit1.a_rad, n=180)
     if not np.isfinite(sil).all():
         return None
@@ -360,14 +368,59 @@ def _pass2(cam, sig, fit1: ConeFit, R: float, a_range_rad, rng):
     sil = cam.distort(sil_xy)
     ctr = cam.project(fit1.w[None, :])[0]
     nrm = outward_normals(sil, sil.mean(axis=0) if np.isfinite(ctr).all() else ctr)
+    geo = (sil, sil_xy, nrm, k2, perim)
     half = max(3.0, 3.0 * fit1.sigma_px + 1.5, 0.02 * R)
+    best = _pass2_reading(cam, sig, fit1, R, a_range_rad, rng, geo, half, 0.0)
+    for s in BLUR_SCALES_PX:
+        if best is not None and best[0].sigma_px <= outline_rms_limit_px(R, _median_width(best)):
+            break
+        if R < SMALL_RADIUS_PX or 2.3548 * s > BLUR_MAX_RADIUS_FRACTION * R:
+            break  # (no smear on a small blob, none wider than a quarter radius: as outline_rms_limit_px)
+        alt = _pass2_reading(cam, sig, fit1, R, a_range_rad, np.random.default_rng(k2), geo, half + 3.0 * s, s)
+        if alt is not None and _smoothed_held(alt, R) and (best is None or _quality(alt[0]) > _quality(best[0])):
+            best = alt
+    return best
+
+
+def _smoothed_held(p2, R: float) -> bool:
+    """A smoothed reading's fit held to the tight refit's standard (smoothing makes any blob of
+    texture rounder; like the several reading it is searched for): TIGHT_MIN_SUPPORT of the
+    normals, edge RMS within TIGHT_RMS_FRACTION of the roundness limit of its edge width; and
+    that width a smear's, not wider than a quarter of the radius (beyond: a streak, a shaded
+    patch)."""
+    fit, _, _, k2, _ = p2
+    return (fit.inliers.sum() >= TIGHT_MIN_SUPPORT * k2
+            and _median_width(p2) <= BLUR_MAX_RADIUS_FRACTION * R
+            and fit.sigma_px <= TIGHT_RMS_FRACTION * outline_rms_limit_px(R, _median_width(p2)))
+
+
+# smoothing (px, Gaussian sigma along the normal) of the profiles read again when the outline is
+# not round for its edge width: a ramp of a few to a quarter radius wide
+BLUR_SCALES_PX = (2.0, 4.0)
+
+
+def _median_width(p2) -> float:
+    fit, _, _, _, widths = p2
+    return float(np.median(widths[fit.inliers])) if fit.inliers.any() else float("nan")
+
+
+def _pass2_reading(cam, sig, fit1: ConeFit, R: float, a_range_rad, rng, geo, half: float, smooth_px: float):
+    """One pass-2 reading: edges within ``half`` px of ``fit1``'s outline along its normals, on
+    profiles smoothed along them by ``smooth_px`` (0: as sampled). The widths returned are those
+    of the edges before that smoothing (its share taken out in quadrature)."""
+    sil, sil_xy, nrm, k2, perim = geo
     t2 = np.arange(-half, half + 0.25, 0.5)
     # a normal whose band leaves the region of interest is not used: the samples there would be
     # the region's replicated border, not the image (pass 1 can fit a large outline from one
     # arc of it, seen from a candidate well off its centre)
     inside_img = cam.in_image(sil, margin_px=1.0) & sig.covers(sil, half + 1.0)
-    g2 = gradient_magnitude(sig.colour_profiles(sil, nrm, t2), 0.5)
+    prof = sig.colour_profiles(sil, nrm, t2)
+    if smooth_px > 0:
+        prof = gaussian_filter1d(prof, smooth_px / 0.5, axis=1, mode="nearest")
+    g2 = gradient_magnitude(prof, 0.5)
     g2_typ = float(np.median(g2.max(axis=1)[inside_img])) if inside_img.any() else 0.0
+    # the region's noise and texture, smoothed alike (per px of gradient, white noise falls as s^1.5)
+    noise = sig.noise * min(1.0, (SMOOTH_SIGMA_PX / np.hypot(SMOOTH_SIGMA_PX, smooth_px)) ** 1.5)
     # the outline's envelope (outermost edge; open-mesh texture lies inside it) and, without a
     # background, also the strongest edge (clutter just outside the outline makes edges too)
     best = None
@@ -378,7 +431,7 @@ def _pass2(cam, sig, fit1: ConeFit, R: float, a_range_rad, rng):
         # an edge must stand out from the region's noise and texture: in noise alone, the
         # outermost of the small gradient peaks sits at the band's end for every normal and
         # makes a "round outline" of its own
-        te, s2 = pick_edges(t2, g2, rule, max(0.3 * g2_typ, EDGE_NOISE_FACTOR * sig.noise))
+        te, s2 = pick_edges(t2, g2, rule, max(0.3 * g2_typ, EDGE_NOISE_FACTOR * noise))
         ok2 = np.isfinite(te) & inside_img
         if ok2.sum() < 12:
             continue
@@ -387,7 +440,9 @@ def _pass2(cam, sig, fit1: ConeFit, R: float, a_range_rad, rng):
         xy2 = normalize_near(cam, uv2, sil_xy[ok2], iterations=3)
         fit = _pass2_fit(cam, xy2, fit1, R, a_range_rad, rng, k2, perim)
         if fit is not None and (best is None or _quality(fit) > _quality(best[0])):
-            best = (fit, ok2, s2, k2, edge_widths(t2, g2, te)[ok2])
+            w = edge_widths(t2, g2, te)[ok2]
+            w = np.sqrt(np.maximum(w ** 2 - (2.3548 * smooth_px) ** 2, 0.0))
+            best = (fit, ok2, s2, k2, w)
     return best
 
 

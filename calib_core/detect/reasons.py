@@ -30,6 +30,12 @@ OUTLINE_SEEN_LABEL = "outline seen"
 RANGE_PRIOR_KEY = "range_prior_rel_sigma"
 
 
+def stereo_refusal_reason(off_px: float, source: str) -> str:
+    """Why a plain detection was refused by another camera's registration carried by the stereo
+    transform (calib_core.stereo_vouch)."""
+    return f"round outline {off_px:.0f} px from where camera {source} and the stereo transform put the sphere"
+
+
 def reason_kind(reason: str) -> str:
     """A reason without its numbers and places: "outline 40 % hidden ... at (3, 4)" ->
     "outline % hidden ..."; "two round objects: (..) and (..)" -> "two round objects"."""

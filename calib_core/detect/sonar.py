@@ -31,7 +31,9 @@ More than one acceptable candidate gives "two candidates" unless one has CLEAR_W
 other's evidence (score x agreement of the size seen with session.yaml's, given how precisely it
 was measured x scatter against the sensor noise: a carried ball beats the shoulders and head of
 the person behind it), or when only the leader's outline hangs free while a surface continues every
-other one's over a long arc (a head on its shoulders: :func:`_free_leader`); a sphere of another
+other one's over a long arc (a head on its shoulders: :func:`_free_leader`), or when one hangs free
+and hides part of every other one behind it (a ball held out in front of its carrier's body:
+:func:`_in_front`); a sphere of another
 size is reported, not used. Every refusal says why, in words an operator can act on.
 The effective beam width (down to 0) is estimated per session with
 :func:`calib_core.detect.sonar_beam.estimate_beam_width_deg`.
@@ -77,6 +79,9 @@ MAX_JUDGED = 16  # candidates pre-screened (cheap), best coarse quality first
 MAX_FULL = 5  # of those, judged at full resolution
 RING_PROBLEM = "part of a larger surface"
 MAX_SIGMA_REL = 0.15  # residual scale above this fraction of the radius: not this sphere
+# ... however noisy the sensor: with returns scattered over a third of the radius a sphere's
+# relief is not measured (a far stereo depth patch of a wall passes for anything)
+NOISY_SIGMA_CAP_REL = 1.0 / 3.0
 MIN_INLIERS = 12
 MIN_COVERAGE = 0.7
 MIN_COVERAGE_SEEDED = 0.4
@@ -132,7 +137,8 @@ class _Judged:
 
 def _max_sigma(radius: float, noise_m: float) -> float:
     """Largest residual scale (m) a sphere of ``radius`` may show (see MAX_SIGMA_REL)."""
-    return max(MAX_SIGMA_REL * radius, 2.0 * noise_m + 0.002 if np.isfinite(noise_m) else 0.0)
+    noisy = min(2.0 * noise_m + 0.002, NOISY_SIGMA_CAP_REL * radius) if np.isfinite(noise_m) else 0.0
+    return max(MAX_SIGMA_REL * radius, noisy)
 
 
 def _assess(X, R, D, fit: FitResult, radius: float, h: float, seeded: bool, noise_m: float):
@@ -493,7 +499,7 @@ def _choose(judged: list[_Judged], r: float, seed, W: np.ndarray, h: float) -> t
         return min(good, key=lambda j: np.linalg.norm(j.fit.center_m - seed)), {}
     resolved = ""
     if len(nominal) > 1 and nominal[0].evidence(r) < CLEAR_WINNER * nominal[1].evidence(r):
-        resolved = _free_leader(nominal, W, r, h)
+        nominal, resolved = _resolve(nominal, W, r, h)
         if not resolved:
             return None, _two_candidates(nominal, r, len(good))
     if not nominal:  # sphere-like, but not of session.yaml's size: a decoy or a wrong diameter
@@ -525,6 +531,43 @@ def _two_candidates(nominal: list[_Judged], r: float, n_good: int) -> dict:
             "candidate_evidence": [round(j.evidence(r), 4) for j in nominal]}
 
 
+def _resolve(nominal: list[_Judged], W: np.ndarray, r: float, h: float) -> tuple[list[_Judged], str]:
+    """(the candidates, the one to take first, and why; or why "" when none can be told apart):
+    the leader hanging free while the others continue into larger surfaces (:func:`_free_leader`),
+    or the one candidate in front of all the others (:func:`_in_front`)."""
+    why = _free_leader(nominal, W, r, h)
+    if why:
+        return nominal, why
+    k, why = _in_front(nominal, W, r, h)
+    return ([nominal[k]] + nominal[:k] + nominal[k + 1:], why) if why else (nominal, "")
+
+
+def _in_front(nominal: list[_Judged], W: np.ndarray, r: float, h: float) -> tuple[int, str]:
+    """(index, why) of the candidate that hides part of every other one (their discs overlap in
+    the sensor's view and each other one is at least a radius farther) while its own outline
+    hangs free but for what holds it (at most FREE_ARC sectors in one run); (-1, "") if none.
+    A ball held out in front of its carrier hides part of the body behind it, and what is left
+    of the body round that hole (a torso's side, a shoulder) can fit a sphere of its size: a
+    round thing with part of its outline hidden is not known to be round there."""
+    C = [j.fit.center_m for j in nominal]
+    rng_m = [float(np.linalg.norm(c)) for c in C]
+    alpha = [float(np.arcsin(min(r / d, 1.0))) + h for d in rng_m]
+    k = int(np.argmin(rng_m))
+    for i, c in enumerate(C):
+        if i == k:
+            continue
+        sep = float(np.arccos(np.clip(C[k] @ c / (rng_m[k] * rng_m[i]), -1.0, 1.0)))
+        if sep >= alpha[k] + alpha[i] or rng_m[i] < rng_m[k] + r:
+            return -1, ""
+    arc = longest_attached_arc(_attached(W, nominal[k], r, h))
+    if arc > FREE_ARC:
+        return -1, ""
+    behind = ", ".join(f"{d:.2f} m" for i, d in enumerate(rng_m) if i != k)
+    return k, (f"occlusion: this round object ({rng_m[k]:.2f} m) hides part of the other"
+               f"{'s' if len(C) > 2 else ''} behind it ({behind}) and hangs free but over {arc}/16 "
+               f"(a ball held out in front of its carrier?)")
+
+
 def _free_leader(nominal: list[_Judged], W: np.ndarray, r: float, h: float) -> str:
     """Why the candidate with the most evidence (not CLEAR_WINNER times the next) is the sphere
     after all, or "": its outline hangs free but for what holds it (at most FREE_ARC sectors in
@@ -549,7 +592,9 @@ def _attached(W: np.ndarray, j: _Judged, r: float, h: float) -> np.ndarray:
     R = np.linalg.norm(X, axis=1)
     c = j.fit.center_m
     cn = float(np.linalg.norm(c))
-    return attached_sectors(R, X / R[:, None], c, r, float(np.arcsin(min(r / cn, 1.0))) + h, h, j.noise_m)
+    # (without the fattened rim: a body continues a head's outline from its edge on, as in range5)
+    return attached_sectors(R, X / R[:, None], c, r, float(np.arcsin(min(r / cn, 1.0))) + h, h, j.noise_m,
+                            rim=False)
 
 
 def _centres(judged: list[_Judged]) -> list[list[float]]:

@@ -16,19 +16,25 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial import cKDTree
 
-from calib_core.detect.sonar_fit import MAD_TO_SIGMA
+from calib_core.detect.sonar_fit import robust_sigma
 from calib_core.detect.sonar_search import polar_about
 
 N_SECTORS = 16
 
 
+# returns within this many samples outside the outline do not show an attachment: a stereo
+# camera's matching window fattens a foreground edge by a pixel or two
+RIM_SAMPLES = 2.0
+
+
 def attached_sectors(R: np.ndarray, D: np.ndarray, c: np.ndarray, radius: float, alpha: float,
-                     h: float, noise_m: float) -> np.ndarray:
+                     h: float, noise_m: float, rim: bool = True) -> np.ndarray:
     """(N_SECTORS,) bool: the sectors around the outline where something continues it.
 
     ``R``, ``D``: ranges (m) and unit directions of the points near the sphere; ``c`` its centre;
     ``alpha``: the angular radius of the (cone-widened) disc; ``h``: the beam's half-angle;
-    ``noise_m``: the sensor's range noise (or NaN). A sector is attached when at least two
+    ``noise_m``: the sensor's range noise (or NaN); ``rim``: leave out the returns just outside
+    the outline (:func:`_rim_rad`). A sector is attached when at least two
     returns just outside the disc lie at or in front of the limb's range, and they are most of
     that sector's returns there (flying pixels between a ball's edge and the background are a
     minority).
@@ -37,12 +43,31 @@ def attached_sectors(R: np.ndarray, D: np.ndarray, c: np.ndarray, radius: float,
     limb = float(np.sqrt(max(cn * cn - radius * radius, 0.0)))
     tol = max(0.3 * radius, 4.0 * noise_m if np.isfinite(noise_m) else 0.0)
     theta, ang = polar_about(D, c / cn)
-    sel = (theta > alpha * 1.05) & (theta <= alpha * 1.05 + max(0.5 * alpha, 2 * h))
+    rim = _rim_rad(D, h) if rim else 0.0
+    sel = (theta > alpha * 1.05 + rim) & (theta <= alpha * 1.05 + rim + max(0.5 * alpha, 2 * h))
     sector = sector_of(ang[sel])
     front = R[sel] < limb + tol
     n_all = np.bincount(sector, minlength=N_SECTORS)
     n_front = np.bincount(sector[front], minlength=N_SECTORS)
     return (n_front >= 2) & (n_front >= 0.5 * n_all)
+
+
+def _rim_rad(D: np.ndarray, h: float) -> float:
+    """Angular width (rad) of the rim just outside the outline that shows no attachment: a
+    footprint-less sensor's edge smear (a stereo camera's matching window fattens a foreground
+    edge by a sample or two: RIM_SAMPLES samples); none when the beam's footprint is at least a
+    sample wide, since the cone-widened disc (``h``) already holds that sensor's smear."""
+    spacing = sample_spacing_rad(D)
+    return RIM_SAMPLES * spacing if 2.0 * h < spacing else 0.0
+
+
+def sample_spacing_rad(D: np.ndarray) -> float:
+    """The sensor's angular sample spacing (rad) seen in unit directions ``D``: the median angle
+    to each return's nearest neighbour (0 with fewer than 3 returns)."""
+    if len(D) < 3:
+        return 0.0
+    d, _ = cKDTree(D).query(D, k=2)
+    return float(np.median(d[:, 1]))
 
 
 def sector_of(azimuth_rad: np.ndarray) -> np.ndarray:
@@ -94,7 +119,7 @@ def roughness_m(ranges_m: np.ndarray, dirs: np.ndarray, k: int = 8) -> float:
     if len(ranges_m) <= k:
         return float("nan")
     _, nb = cKDTree(dirs).query(dirs, k=k + 1)
-    return float(MAD_TO_SIGMA * np.median(np.abs(ranges_m - np.median(ranges_m[nb[:, 1:]], axis=1))))
+    return robust_sigma(ranges_m - np.median(ranges_m[nb[:, 1:]], axis=1))
 
 
 def longest_attached_arc(att: np.ndarray) -> int:

@@ -18,7 +18,7 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
-from calib_core.detect.sonar_fit import algebraic_sphere
+from calib_core.detect.sonar_fit import algebraic_sphere, robust_sigma
 from calib_core.detect.sonar_streams import content_rng, thin_hashed
 
 
@@ -70,6 +70,9 @@ MAX_FAILED_PLANES = 3  # plane hypotheses that fail the extent/density checks be
 # floors, walls, seabeds, tables of sonar, LiDAR and RGB-D clouds); a band filled evenly
 # (sd / voxel ~ 0.5-0.75) is things that happen to line up (a ball, a person, a stick): no plane
 MAX_PLANE_SCATTER = 0.35
+# a plane whose returns sit on it to within a micron (MAD) is one depth step of a quantised
+# sensor (stereo disparity steps), not a measured surface: it says nothing of the range noise
+EXACT_PLANE_M = 1e-6
 
 
 def remove_planes(Q: np.ndarray, min_extent_m: float, thr_m: float, rng: np.random.Generator,
@@ -194,7 +197,7 @@ def plane_noise(points_m: np.ndarray, planes: list, thr_m: float, rng: np.random
     res, rr = _plane_residuals(points_m, planes, thr_m, rng, max_points)
     if len(res) < 50:
         return float("nan"), (float("nan"), float("nan"))
-    return float(1.4826 * np.median(np.abs(res - np.median(res)))), _noise_model(res, rr)
+    return robust_sigma(res - np.median(res)), _noise_model(res, rr)
 
 
 def _noise_model(res: np.ndarray, rr: np.ndarray) -> tuple[float, float]:
@@ -209,7 +212,7 @@ def _noise_model(res: np.ndarray, rr: np.ndarray) -> tuple[float, float]:
         m = (rr >= lo) & (rr <= hi)
         if m.sum() >= 30:
             v = res[m]
-            sig.append(1.4826 * float(np.median(np.abs(v - np.median(v)))))
+            sig.append(robust_sigma(v - np.median(v)))
             rmid.append(float(np.median(rr[m])))
     if len(sig) < 2:
         return (sig[0] if sig else float("nan")), 0.0
@@ -236,9 +239,11 @@ def _plane_residuals(points_m, planes, thr_m, rng, max_points):
         dn = D @ n
         dist = S @ n - off
         m = (np.abs(dist) < 2 * thr_m) & (np.abs(dn) > 0.3)
+        if m.sum() and np.median(np.abs(dist[m] - np.median(dist[m]))) < EXACT_PLANE_M:
+            continue  # one depth step of a quantised sensor, not a surface: it shows no noise
         res.append(dist[m] / dn[m])
         rr.append(R[m])
-    return np.concatenate(res), np.concatenate(rr)
+    return (np.concatenate(res), np.concatenate(rr)) if res else (np.zeros(0), np.zeros(0))
 
 
 def cluster_points(Q: np.ndarray, link_m: float) -> np.ndarray:

@@ -1,0 +1,88 @@
+"""Stereo vouching (issue 11, thirteenth round): the better registered camera, carried by the
+session's stereo transform, refuses the other camera's wrong plain detections (gym s48 before the
+tenth round: cam2 had 3 right and 2 wrong plain detections, and both wrong ones went into the solve)."""
+
+from types import SimpleNamespace
+
+import cv2
+import numpy as np
+
+from calib_core.camera import CameraModel
+from calib_core.geometry import invert_T
+from calib_core.stereo_vouch import VOUCH_CHI2, stereo_predictions, vouch_chi2
+
+RADIUS_M = 0.3
+
+
+def _cam(w=960, h=600, f=700.0) -> CameraModel:
+    return CameraModel(w, h, np.array([[f, 0, w / 2], [0, f, h / 2], [0, 0, 1]]), np.zeros(5))
+
+
+def _T(rvec, t) -> np.ndarray:
+    T = np.eye(4)
+    T[:3, :3] = cv2.Rodrigues(np.asarray(rvec, float))[0]
+    T[:3, 3] = t
+    return T
+
+
+def _session(n=8, seed=3, wrong=(("p3", 26.0), ("p5", 134.0)), lost=("p1", "p6", "p7")):
+    """A two-camera session's detections: cam1 sees all n spheres, cam2 a few right, a few wrong."""
+    rng = np.random.default_rng(seed)
+    cams = {"cam1": _cam(), "cam2": _cam()}
+    T1 = _T([0.1, -0.2, 0.05], [0.2, -0.1, 0.3])
+    T21 = _T([0.0, 0.05, 0.0], [-0.25, 0.0, 0.0])
+    T = {"cam1": T1, "cam2": T21 @ T1}
+    X_cam1 = np.column_stack([rng.uniform(-1, 1, n), rng.uniform(-0.4, 0.4, n), rng.uniform(2.5, 4.5, n)])
+    X_sonar = (invert_T(T1)[:3, :3] @ X_cam1.T).T + invert_T(T1)[:3, 3]
+    dets = {}
+    for i in range(n):
+        cid = f"p{i}"
+        d = {"sonar": {"status": "auto", "center": X_sonar[i].tolist()}}
+        for c, Tc in T.items():
+            Xc = Tc[:3, :3] @ X_sonar[i] + Tc[:3, 3]
+            uv = cams[c].project(Xc[None])[0] + rng.normal(0, 0.3, 2)
+            d[c] = {"status": "auto", "center": uv.tolist(), "cov_px2": [0.09, 0, 0, 0.09],
+                    "range_m": float(np.linalg.norm(Xc) * (1 + rng.normal(0, 0.005)))}
+        dets[cid] = d
+    for cid, off in wrong:
+        a = rng.uniform(0, 2 * np.pi)
+        dets[cid]["cam2"]["center"] = (np.asarray(dets[cid]["cam2"]["center"]) + off * np.array([np.cos(a), np.sin(a)])).tolist()
+    for cid in lost:
+        dets[cid]["cam2"] = {"status": "auto", "reason": "no round outline"}
+    session = SimpleNamespace(stereo={"T_cam2_cam1": T21}, cameras={"cam1": None, "cam2": None}, raw={},
+                              sphere_radius_m=RADIUS_M)
+    data = SimpleNamespace(session=session, camera=lambda c: cams[c])
+    return data, dets
+
+
+def test_the_better_registered_camera_refuses_the_other_cameras_wrong_detections():
+    from calib_core.pipeline import _stereo_refusals
+
+    data, dets = _session()
+    out = _stereo_refusals(data, dets, set(dets))
+    assert set(out) == {("p3", "cam2"), ("p5", "cam2")}
+    for e in out.values():
+        assert e.get("center") is None and "stereo transform" in e["reason"] and e["refused_center"]
+
+
+def test_no_right_detection_refused_and_nothing_without_a_stereo_transform():
+    from calib_core.pipeline import _stereo_refusals
+
+    for seed in range(3, 13):  # the right ones pass: 10 sessions, 80 + 50 plain detections
+        data, dets = _session(seed=seed, wrong=())
+        assert _stereo_refusals(data, dets, set(dets)) == {}
+    data, dets = _session()
+    data.session.stereo = {}
+    assert _stereo_refusals(data, dets, set(dets)) == {}
+
+
+def test_the_prediction_carried_by_the_stereo_transform_and_its_test():
+    cam = _cam()
+    T1 = _T([0.1, -0.2, 0.05], [0.2, -0.1, 0.3])
+    T21 = _T([0.0, 0.05, 0.0], [-0.25, 0.0, 0.0])
+    X_sonar = {"a": np.array([0.5, 0.2, 3.0])}
+    p = stereo_predictions(cam, T21, np.eye(6) * 1e-8, T1, 0.0, cam.fx, X_sonar, "cam1")["a"]
+    X2 = (T21 @ T1)[:3, :3] @ X_sonar["a"] + (T21 @ T1)[:3, 3]
+    assert np.allclose(p.uv_px, cam.project(X2[None])[0]) and abs(p.range_m - np.linalg.norm(X2)) < 1e-9
+    assert p.sigma_px >= 1.5  # the floor
+    assert vouch_chi2(p, p.uv_px + [p.sigma_px, 0]) < VOUCH_CHI2 < vouch_chi2(p, p.uv_px + [4 * p.sigma_px, 0])
