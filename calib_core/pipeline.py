@@ -318,7 +318,7 @@ def _stereo_predictions(data: SessionData, detections: dict, only: set) -> dict:
     """{camera b: {capture: StereoPrediction}} from the best registered other camera tied to ``b``
     by the stereo transforms, chained when the session ties both only to a third camera
     (:mod:`calib_core.stereo_vouch`, :mod:`calib_core.stereo_chain`); empty without a stereo transform."""
-    from calib_core.solve.calibrate import session_stereo_cov
+    from calib_core.solve.stereo_cov import session_stereo_cov
     from calib_core.stereo_chain import chained_stereo
     from calib_core.stereo_vouch import stereo_predictions
 
