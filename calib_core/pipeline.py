@@ -316,7 +316,7 @@ def _sonar_centers(detections: dict) -> dict:
 def _stereo_predictions(data: SessionData, detections: dict, only: set) -> dict:
     """{camera b: {capture: StereoPrediction}} from the better registered camera of each stereo
     pair (:mod:`calib_core.stereo_vouch`); empty without a stereo transform."""
-    from calib_core.solve.calibrate import session_stereo_cov
+    from calib_core.solve.stereo_cov import session_stereo_cov
     from calib_core.solve.rig import find_stereo
     from calib_core.stereo_vouch import stereo_predictions
 

@@ -34,6 +34,7 @@ from calib_core.detect.image_fit import TIGHT_MIN_SUPPORT, clean_rms_px, outline
 from calib_core.detect.image_discs import candidates_by_discs
 from calib_core.detect.image_highlight import host_candidates, is_clipped_spot
 from calib_core.detect.image_hough import hough_circle
+from calib_core.detect.image_range import cone_range_sigma_m, outline_range_floor_m
 from calib_core.detect.image_score import features, probability
 from calib_core.detect.image_votes import candidates_by_votes
 from calib_core.detect.image_region import (Candidate, candidates_from_background,
@@ -553,9 +554,10 @@ def _detection(f: CandidateFit, sphere_radius_m: float, method: str, n_cands: in
     extras["candidates"] = n_cands
     extras["runner_up_ratio"] = round(runner_up, 4)
     apparent_r = _mean_radius(f.silhouette_px)
-    rng_sigma = float(sphere_radius_m * np.cos(f.fit.a_rad) / np.sin(f.fit.a_rad) ** 2
-                      * np.sqrt(f.fit.cov_params[2, 2]))
-    rng_sigma = float(np.hypot(rng_sigma, _blur_range_floor_m(f, apparent_r, sphere_radius_m)))
+    range_m = sphere_radius_m / np.sin(f.fit.a_rad)
+    rng_sigma = float(np.linalg.norm([cone_range_sigma_m(sphere_radius_m, f.fit.a_rad, f.fit.cov_params[2, 2]),
+                                      _blur_range_floor_m(f, apparent_r, sphere_radius_m),
+                                      outline_range_floor_m(range_m, apparent_r, float(f.fit.sigma_px))]))
     extras["range_sigma_m"] = round(rng_sigma, 5)
     # the cone's half-angle is what the camera measures; range_m = radius / sin(angle), so a
     # wrong diameter in session.yaml shows up as a range that disagrees with the sonar's

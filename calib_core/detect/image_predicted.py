@@ -35,6 +35,7 @@ from calib_core.camera import CameraModel
 from calib_core.detect.image_cone import (ConeFit, centre_uv_and_cov, normalize_near, orthonormal_basis,
                                           px_per_rad, rays_from_xy, silhouette_uv, silhouette_xy)
 from calib_core.detect.image import CUT, NO_OUTLINE, prepare_background
+from calib_core.detect.image_range import cone_range_sigma_m, outline_range_floor_m
 from calib_core.detect.image_edges import gradient_magnitude, outward_normals
 from calib_core.detect.image_fit import (CORR_LENGTH_PX, EDGE_NOISE_FACTOR, EDGE_SPACING_PX, SYS_FRACTION, _Signal,
                                          clean_rms_px)
@@ -243,7 +244,8 @@ def _verdict(cam, fit: ConeFit, support: float, k: int, R: float, sphere_radius_
         return _not_found(f"outline {100 * (1 - support):.0f} % hidden or too faint {WHERE} {where}", **extras)
     cov = cov + (SYS_FRACTION * fit.sigma_px) ** 2 * np.eye(2)
     r_px = float(np.mean(np.linalg.norm(sil - sil.mean(axis=0), axis=1)))
-    rng_sigma = float(sphere_radius_m * np.cos(fit.a_rad) / np.sin(fit.a_rad) ** 2 * np.sqrt(fit.cov_params[2, 2]))
+    rng_sigma = float(np.hypot(cone_range_sigma_m(sphere_radius_m, fit.a_rad, fit.cov_params[2, 2]),
+                               outline_range_floor_m(sphere_radius_m / np.sin(fit.a_rad), r_px, float(fit.sigma_px))))
     extras.update(range_sigma_m=round(rng_sigma, 5), angular_radius_deg=round(float(np.degrees(fit.a_rad)), 5),
                   outline_coverage=round(support, 3))
     # no probability (score None): the share of the outline seen, discounted by its spread (as the

@@ -27,7 +27,8 @@ from calib_core.solve.refine import ROBUST_LOSSES, Link
 from calib_core.solve.scale import (diameter_sigma, outline_sigma_px, range_model, range_rel_sigma, size_route_caution,
                                    stereo_limit_note)
 from calib_core.solve.shared_scale import shared_scale
-from calib_core.solve.rig import default_stereo_cov, find_stereo, solve_rig, table_i
+from calib_core.solve.rig import find_stereo, solve_rig, table_i
+from calib_core.solve.stereo_cov import session_stereo_cov
 from calib_core.solve.single import CameraSolution, solve_camera
 
 
@@ -96,22 +97,6 @@ def sigmas(cov6: np.ndarray) -> dict:
     r, t = np.degrees(d[:3]), 1000 * d[3:]
     return {"sigma_1": {"rotation_deg": r, "translation_mm": t},
             "sigma_3": {"rotation_deg": 3 * r, "translation_mm": 3 * t}}
-
-
-def session_stereo_cov(session, key: str) -> tuple[np.ndarray, bool]:
-    """Covariance of a stereo transform from session.yaml's optional ``stereo_covariance``
-    mapping (same keys as ``stereo``), else the assumed default. Returns (cov, assumed)."""
-    raw = (session.raw or {}).get("stereo_covariance") or {}
-    if isinstance(raw, dict) and key in raw:
-        try:
-            C = np.asarray(raw[key], float).reshape(6, 6)
-        except (TypeError, ValueError):
-            raise SessionError(session.manifest_path, f"stereo_covariance.{key} must be a 6x6 matrix") from None
-        C = 0.5 * (C + C.T)
-        if not np.isfinite(C).all() or np.any(np.linalg.eigvalsh(C) <= 0):
-            raise SessionError(session.manifest_path, f"stereo_covariance.{key} must be positive definite")
-        return C, False
-    return default_stereo_cov(), True
 
 
 def _camera_entry(sol: CameraSolution, skipped: dict, intrinsics_rel: str) -> dict:
