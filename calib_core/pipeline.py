@@ -292,15 +292,16 @@ def _well_registered(res, n_with_candidates: int) -> bool:
 
 
 def _stereo_source(regs: dict, b: str, stereo: dict) -> str | None:
-    """The camera whose registration, carried by the stereo transform, predicts camera ``b``'s
-    centres: well registered, tied to ``b`` by a stereo transform, and better registered than ``b``
-    (more plain detections agree with it; then the smaller scatter)."""
-    from calib_core.solve.rig import find_stereo
+    """The camera whose registration, carried by the stereo transforms, predicts camera ``b``'s
+    centres: well registered, tied to ``b`` by a stated stereo transform or a chain of them
+    (:mod:`calib_core.stereo_chain`), and better registered than ``b`` (more plain detections agree
+    with it; then the smaller scatter)."""
+    from calib_core.stereo_chain import stereo_path
 
     def key(c):
         return (regs[c][0].support, -regs[c][0].residual_px)
 
-    cands = [a for a in regs if a != b and find_stereo(stereo, a, b) is not None and _well_registered(*regs[a])]
+    cands = [a for a in regs if a != b and stereo_path(stereo, a, b) is not None and _well_registered(*regs[a])]
     best = max(cands, key=key, default=None)
     if best is None or (_well_registered(*regs[b]) and key(best) <= key(b)):
         return None
@@ -314,10 +315,11 @@ def _sonar_centers(detections: dict) -> dict:
 
 
 def _stereo_predictions(data: SessionData, detections: dict, only: set) -> dict:
-    """{camera b: {capture: StereoPrediction}} from the better registered camera of each stereo
-    pair (:mod:`calib_core.stereo_vouch`); empty without a stereo transform."""
-    from calib_core.solve.stereo_cov import session_stereo_cov
-    from calib_core.solve.rig import find_stereo
+    """{camera b: {capture: StereoPrediction}} from the best registered other camera tied to ``b``
+    by the stereo transforms, chained when the session ties both only to a third camera
+    (:mod:`calib_core.stereo_vouch`, :mod:`calib_core.stereo_chain`); empty without a stereo transform."""
+    from calib_core.solve.stereo_cov import key_stereo_cov
+    from calib_core.stereo_chain import chained_stereo
     from calib_core.stereo_vouch import stereo_predictions
 
     stereo, cams = data.session.stereo, list(data.session.cameras)
@@ -330,9 +332,10 @@ def _stereo_predictions(data: SessionData, detections: dict, only: set) -> dict:
         a = _stereo_source(regs, b, stereo)
         if a is None:
             continue
-        res_a, T_b_a = regs[a][0], find_stereo(stereo, a, b)
-        out[b] = stereo_predictions(data.camera(b), T_b_a, session_stereo_cov(data.session, a, b, T_b_a)[0],
-                                    res_a.T_cam_sonar, res_a.residual_px, data.camera(a).fx, _sonar_centers(detections), a)
+        T_b_a, cov, _ = chained_stereo(stereo, lambda k: key_stereo_cov(data.session, k)[0], a, b)
+        res_a = regs[a][0]
+        out[b] = stereo_predictions(data.camera(b), T_b_a, cov, res_a.T_cam_sonar, res_a.residual_px,
+                                    data.camera(a).fx, _sonar_centers(detections), a)
     return out
 
 

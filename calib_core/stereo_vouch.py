@@ -23,7 +23,7 @@ The prediction's uncertainty per image axis (px), root sum of squares of:
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -42,12 +42,14 @@ class StereoPrediction:
     """Where camera ``b`` must see capture's sphere according to camera ``a``.
 
     uv_px: (2,) the projection; range_m: camera ``b`` to the centre; sigma_px: per-axis 1-sigma of
-    the projection (without the detection's own error); source: camera ``a``'s name."""
+    the projection (without the detection's own error); source: camera ``a``'s name; terms_px:
+    {term: its per-axis 1-sigma (px)}, the root sum of squares of which is sigma_px."""
 
     uv_px: np.ndarray
     range_m: float
     sigma_px: float
     source: str
+    terms_px: dict = field(default_factory=dict)
 
 
 def stereo_predictions(cam_b: CameraModel, T_b_a: np.ndarray, cov_stereo6: np.ndarray, T_a_sonar: np.ndarray,
@@ -69,9 +71,10 @@ def stereo_predictions(cam_b: CameraModel, T_b_a: np.ndarray, cov_stereo6: np.nd
         if not (np.isfinite(uv).all() and cam_b.in_image(uv[None])[0]):
             continue
         r = float(np.linalg.norm(X_b))
-        s = np.sqrt(reg ** 2 + (cam_b.fx * sig_rot) ** 2 + (cam_b.fx * sig_t / r) ** 2
-                    + (cam_b.fx * RANGE_REL_SIGMA * baseline / r) ** 2)
-        out[cid] = StereoPrediction(uv, r, float(s), source)
+        terms = {"registration": reg, "stereo rotation": cam_b.fx * sig_rot, "stereo translation": cam_b.fx * sig_t / r,
+                 "range across the baseline": cam_b.fx * RANGE_REL_SIGMA * baseline / r}
+        s = float(np.sqrt(sum(v ** 2 for v in terms.values())))
+        out[cid] = StereoPrediction(uv, r, s, source, terms)
     return out
 
 

@@ -237,8 +237,10 @@ def _several_held(sig: _Signal, res: CandidateFit, R: float, outside_bad: float)
     # a circle picked from several edges per ray can run through unrelated things (a block's
     # corner, mortar lines): a sphere's inside has one hue all along its outline (shading
     # changes only the brightness)
+    # (a painted ball: one hue per arc, between the few places where a gore meets the outline)
     return sig.diff is not None or \
-        _inside_colour_agreement(sig, res.silhouette_px, R) >= SEVERAL_MIN_INSIDE_AGREEMENT
+        max(_inside_colour_agreement(sig, res.silhouette_px, R),
+            _inside_colour_arcs(sig, res.silhouette_px, R)) >= SEVERAL_MIN_INSIDE_AGREEMENT
 
 
 def _first_pass(cam, sig: _Signal, cand: Candidate, R: float, band, a_range_rad, rng) -> ConeFit | str:
@@ -526,16 +528,54 @@ SEVERAL_MIN_INSIDE_AGREEMENT = 0.75
 HUE_TOLERANCE_RAD = 0.12
 
 
-def _inside_colour_agreement(sig: _Signal, sil: np.ndarray, R: float) -> float:
-    """Share of the outline whose colour just inside points (as an RGB direction: shading
-    scales it, does not turn it) within HUE_TOLERANCE_RAD of the median inside colour."""
+# an arc of one hue: at least this share of the outline (a gore meets it over 1/16-1/4 of it);
+# a change of hue is looked for between points HUE_STEP_LAG apart (a gore's boundary is blurred
+# over a few px, ~2 px between outline points: neighbours alone differ too little)
+SEVERAL_MIN_ARC_SHARE = 0.05
+HUE_STEP_LAG = 2
+
+
+def _inside_hues(sig: _Signal, sil: np.ndarray, R: float) -> np.ndarray:
+    """(K,3) unit RGB directions just inside the outline (shading scales a colour, does not turn it)."""
     gap = max(3.0, 0.04 * R)
     c_in = sample_profiles(sig.img, sig.origin, sil, outward_normals(sil, sil.mean(axis=0)),
                            -gap - np.arange(3.0)).mean(axis=1) + 1.0
-    d = c_in / np.linalg.norm(c_in, axis=1, keepdims=True)
+    return c_in / np.linalg.norm(c_in, axis=1, keepdims=True)
+
+
+def _within(d: np.ndarray) -> int:
+    """How many unit directions lie within HUE_TOLERANCE_RAD of their median."""
     med = np.median(d, axis=0)
     med /= max(float(np.linalg.norm(med)), 1e-9)
-    return float(np.mean(np.arccos(np.clip(d @ med, -1.0, 1.0)) < HUE_TOLERANCE_RAD))
+    return int(np.sum(np.arccos(np.clip(d @ med, -1.0, 1.0)) < HUE_TOLERANCE_RAD))
+
+
+def _inside_colour_agreement(sig: _Signal, sil: np.ndarray, R: float) -> float:
+    """Share of the outline whose colour just inside points within HUE_TOLERANCE_RAD of the
+    median inside colour."""
+    d = _inside_hues(sig, sil, R)
+    return _within(d) / len(d)
+
+
+def _inside_colour_arcs(sig: _Signal, sil: np.ndarray, R: float) -> float:
+    """Share of the outline in long arcs of one hue each: a painted ball (beach-ball gores,
+    panels) changes hue only where a panel's boundary meets the outline, a few times around it;
+    a circle run through texture or several objects changes it often. The outline is split
+    where the hue turns by more than HUE_TOLERANCE_RAD over HUE_STEP_LAG points; arcs of at
+    least SEVERAL_MIN_ARC_SHARE of it count with their points within tolerance of their own
+    median hue."""
+    d = _inside_hues(sig, sil, R)
+    k = len(d)
+    turn = np.arccos(np.clip((d * np.roll(d, -HUE_STEP_LAG, axis=0)).sum(axis=1), -1.0, 1.0)) > HUE_TOLERANCE_RAD
+    if not turn.any():
+        return _within(d) / k
+    start = int(np.flatnonzero(turn)[0])
+    steady = np.roll(~turn, -start)  # (begins on a turn: no arc wraps around the end)
+    edges = np.flatnonzero(np.diff(np.r_[0, steady.astype(np.int8), 0]))
+    d = np.roll(d, -start, axis=0)
+    good = sum(_within(d[a:b]) for a, b in zip(edges[::2], edges[1::2])
+               if b - a >= max(4, SEVERAL_MIN_ARC_SHARE * k))
+    return good / k
 
 
 def _outside_mismatch(sig: _Signal, sil: np.ndarray, nrm: np.ndarray, R: float) -> float:

@@ -24,6 +24,15 @@ def session_stereo_cov(session, ref: str, cam: str, T_cam_ref: np.ndarray) -> tu
     return default_stereo_cov(), True
 
 
+def key_stereo_cov(session, key: str) -> tuple[np.ndarray, bool]:
+    """(covariance, assumed) of the transform session.yaml states under ``stereo.<key>``, as stated
+    under the same key in ``stereo_covariance``, else the assumed default."""
+    raw = (session.raw or {}).get("stereo_covariance") or {}
+    if isinstance(raw, dict) and key in raw:
+        return _stated(session, raw, key), False
+    return default_stereo_cov(), True
+
+
 def stereo_link(session, ref: str, cam: str):
     """(T_cam_ref, covariance, assumed, via) from session.yaml's stereo transforms: stated for the
     pair (via None), else chained through one other camera ``via`` (a third camera tied to cam1
