@@ -18,6 +18,7 @@ from calib_core.camera import vertical_fov_rad
 STATUS_RGB = {"auto": (240, 200, 0), "accepted": (30, 190, 60), "corrected": (40, 120, 255), "rejected": (220, 40, 40)}
 CAM_RGB = [(255, 120, 0), (0, 170, 170), (150, 60, 220), (120, 120, 0)]
 GT_RGB = (230, 0, 230)
+FRUSTUM_MAX_FOV = np.radians(170.0)  # a frustum cannot show 180 deg or more (wide fisheyes)
 PALETTE = np.array([(31, 119, 180), (255, 127, 14), (44, 160, 44), (214, 39, 40), (148, 103, 189), (140, 86, 75),
                     (227, 119, 194), (127, 127, 127), (188, 189, 34), (23, 190, 207)], np.uint8)
 
@@ -277,7 +278,7 @@ class Scene3D:
             T_w = camera_pose_in_cloud_frame(T, s)
             wxyz, pos = pose_wxyz_position(T_w)
             model = self.wb.state.camera(cam) if cam in self.wb.state.session.cameras else None
-            fov = vertical_fov_rad(model) if model else 0.8
+            fov = min(vertical_fov_rad(model), FRUSTUM_MAX_FOV) if model else 0.8
             aspect = model.width_px / model.height_px if model else 1.5
             sc.add_camera_frustum(f"/gt/{cam}", fov=fov, aspect=aspect, scale=0.12, color=GT_RGB, wxyz=wxyz,
                                   thickness=2.0, thickness_units="screen",
@@ -301,7 +302,7 @@ class Scene3D:
             frame.wxyz, frame.position, frame.visible = wxyz, pos, self.show_cams.value
             calibrated = st.T_cam_sonar(cam) is not None
             self.frustums[cam] = sc.add_camera_frustum(
-                f"/cams/{cam}/frustum", fov=vertical_fov_rad(model),
+                f"/cams/{cam}/frustum", fov=min(vertical_fov_rad(model), FRUSTUM_MAX_FOV),
                 aspect=model.width_px / model.height_px, scale=0.15, thickness=2.0, thickness_units="screen",
                 color=CAM_RGB[k % len(CAM_RGB)] if calibrated else (150, 150, 150))
             sc.add_label(f"/cams/{cam}/label", cam if calibrated else f"{cam} (uncalibrated)")

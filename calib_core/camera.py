@@ -276,13 +276,14 @@ class CameraModel:
 
 
 def vertical_fov_rad(cam: CameraModel) -> float:
-    """The angle between the rays of the image's top and bottom edge centres (rad), for any lens
-    model (a fisheye's can pass 90 deg); the pinhole value where a ray is undefined."""
+    """The vertical field of view (rad): the angles off the optical axis of the rays through the
+    top and bottom edge centres, added (a fisheye's may pass 180 deg); for a principal point
+    inside the image. Where a fisheye's edge ray is beyond its lens's fold: f theta's h / fy."""
     ends = np.array([[cam.cx, -0.5], [cam.cx, cam.height_px - 0.5]])
     v = cam.rays(ends)
     if not np.isfinite(v).all():
-        return float(2 * np.arctan(cam.height_px / (2 * cam.fy)))
-    return float(np.arccos(np.clip(v[0] @ v[1], -1.0, 1.0)))
+        return float(cam.height_px / cam.fy if cam.fisheye else 2 * np.arctan(cam.height_px / (2 * cam.fy)))
+    return float(np.sum(np.arccos(np.clip(v[:, 2], -1.0, 1.0))))
 
 
 def distortion_terms(cam: CameraModel) -> str:

@@ -193,3 +193,10 @@ def test_opencv_filestorage_fisheye_model_flag(tmp_path, flag, n):
         return
     cam = load_intrinsics(p)
     assert cam.fisheye == bool(flag) and np.allclose(cam.dist[:4], D4)
+
+
+def test_vertical_field_of_view_past_180_deg():
+    from calib_core.camera import vertical_fov_rad
+
+    fe = CameraModel(1000, 1000, [[250.0, 0, 500], [0, 250.0, 500], [0, 0, 1]], np.zeros(4), fisheye=True)
+    assert vertical_fov_rad(fe) == pytest.approx(1000 / 250, abs=1e-3)  # 229 deg, not 360 - 229

@@ -191,3 +191,12 @@ def test_any_odd_field_value_is_a_session_error_or_a_model(tmp_path):
                 assert "\n" not in str(e)
             else:
                 assert np.isfinite(m.K).all() and m.width_px > 0 and "\n" not in m.name
+
+
+def test_intrinsics_entry_on_a_ros_file_is_refused(tmp_path):
+    p = tmp_path / "cam1.yaml"
+    p.write_text(yaml.safe_dump({"image_width": 640, "image_height": 480,
+                                 "camera_matrix": {"rows": 3, "cols": 3, "data": [500, 0, 320, 0, 500, 240, 0, 0, 1]}}))
+    assert load_intrinsics(p).width_px == 640
+    with pytest.raises(SessionError, match="not a Kalibr camchain"):
+        load_intrinsics(p, "cam1", entry="cam0")

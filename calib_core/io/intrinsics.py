@@ -49,6 +49,9 @@ def load_intrinsics(path: str | Path, camera: str | None = None, entry: str | No
         raise SessionError(path, "expected a ROS camera_info mapping (image_width, camera_matrix, ...)")
     if is_camchain(data):
         return camera_from_camchain(path, data, camera, entry)
+    if entry is not None:
+        raise SessionError(path, f"intrinsics_entry {short_repr(entry)} is given, but this is not a Kalibr camchain "
+                                 "(cam0: {intrinsics: ...}); leave intrinsics_entry out for a ROS camera_info file")
     return _from_ros(path, data)
 
 
