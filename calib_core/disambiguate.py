@@ -73,6 +73,18 @@ class Resolution:
     rough_agree: int = 0
 
 
+def _predict_places(out: Resolution, cam: CameraModel, T_cam_sonar: np.ndarray, centers_sonar_m: dict,
+                    predict_for) -> None:
+    """``out.predicted_uvr[c]`` = (u, v, range) where the registration puts capture ``c``'s
+    sphere, for the captures in ``predict_for`` not yet predicted and inside the image."""
+    for c in predict_for:
+        if c in centers_sonar_m and c not in out.predicted_uvr:
+            X_cam = T_cam_sonar[:3, :3] @ np.asarray(centers_sonar_m[c], float) + T_cam_sonar[:3, 3]
+            uv = cam.project(X_cam[None])[0]
+            if X_cam[2] > 0 and np.isfinite(uv).all() and cam.in_image(uv[None])[0]:
+                out.predicted_uvr[c] = (float(uv[0]), float(uv[1]), float(np.linalg.norm(X_cam)))
+
+
 def resolve_candidates(cam: CameraModel, centers_sonar_m: dict[str, np.ndarray],
                        candidates: dict[str, np.ndarray], iterations: int = 400,
                        seed: int = 0, predict_for=(), rough=(), range_free=()) -> Resolution:
@@ -116,12 +128,7 @@ def resolve_candidates(cam: CameraModel, centers_sonar_m: dict[str, np.ndarray],
     out.rough_agree = len(_single_inliers(best_T, [c for c in ids if c in set(rough)], X, P, tol))
     for c in ids:
         _decide(out, cam, c, best_T[:3, :3] @ X[c] + best_T[:3, 3], P[c], tol[c])
-    for c in predict_for:
-        if c in centers_sonar_m and c not in out.predicted_uvr:
-            X_cam = best_T[:3, :3] @ np.asarray(centers_sonar_m[c], float) + best_T[:3, 3]
-            uv = cam.project(X_cam[None])[0]
-            if X_cam[2] > 0 and np.isfinite(uv).all() and cam.in_image(uv[None])[0]:
-                out.predicted_uvr[c] = (float(uv[0]), float(uv[1]), float(np.linalg.norm(X_cam)))
+    _predict_places(out, cam, best_T, centers_sonar_m, predict_for)
     if checks_px:
         targets = {c: np.asarray(centers_sonar_m[c], float) for c in {*checks_px, *out.predicted_uvr}}
         out.sigma_px = _three_point_sigma_px(cam, best_T, _single_inliers(best_T, plain, X, P, tol), X, P, targets)
