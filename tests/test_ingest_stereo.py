@@ -23,6 +23,24 @@ def _T(seed):
     return make_T(Rotation.from_rotvec(rng.normal(0, 0.3, 3)).as_matrix(), rng.normal(0, 0.5, 3))
 
 
+def _bag(bag, T_cam_cam1: dict):
+    """A ROS 1 bag: 4 scans, cam1 and the cameras of ``T_cam_cam1`` (each tied to cam1 in
+    /tf_static), camera_info and a flat image per scan and camera."""
+    rng = np.random.default_rng(0)
+    with BagWriter(bag, "ros1") as w:
+        ts = w.typestore
+        for c, T in T_cam_cam1.items():
+            w.write("/tf_static", rosmsg.TF_STATIC, NS // 2, tf_static_msg(ts, 0, f"{c}_optical", "cam1_optical", T, True))
+        for i in range(4):
+            t = (1 + i) * NS
+            w.write("/sonar/points", rosmsg.POINTCLOUD2, t, rosmsg.cloud_msg(ts, t, "sonar", rng.normal(size=(20, 3)), None, True))
+            for c in ("cam1", *T_cam_cam1):
+                w.write(f"/{c}/camera_info", rosmsg.CAMERA_INFO, t, rosmsg.info_msg(ts, t, f"{c}_optical", CAM, True))
+                w.write(f"/{c}/image_raw", rosmsg.IMAGE, t,
+                        rosmsg.image_msg(ts, t, f"{c}_optical", np.full((48, 64, 3), 80, np.uint8), True))
+    return bag
+
+
 def test_transform_between_composes_the_tree(tmp_path):
     from rosbags.typesys import Stores, get_typestore
 
@@ -37,18 +55,7 @@ def test_transform_between_composes_the_tree(tmp_path):
 
 def test_two_camera_bag_gets_stereo_from_tf_static(tmp_path, capsys):
     T21 = _T(3)
-    bag = tmp_path / "two.bag"
-    rng = np.random.default_rng(0)
-    with BagWriter(bag, "ros1") as w:
-        ts = w.typestore
-        w.write("/tf_static", rosmsg.TF_STATIC, NS // 2, tf_static_msg(ts, 0, "cam2_optical", "cam1_optical", T21, True))
-        for i in range(4):
-            t = (1 + i) * NS
-            w.write("/sonar/points", rosmsg.POINTCLOUD2, t, rosmsg.cloud_msg(ts, t, "sonar", rng.normal(size=(20, 3)), None, True))
-            for c in ("cam1", "cam2"):
-                w.write(f"/{c}/camera_info", rosmsg.CAMERA_INFO, t, rosmsg.info_msg(ts, t, f"{c}_optical", CAM, True))
-                w.write(f"/{c}/image_raw", rosmsg.IMAGE, t,
-                        rosmsg.image_msg(ts, t, f"{c}_optical", np.full((48, 64, 3), 80, np.uint8), True))
+    bag = _bag(tmp_path / "two.bag", {"cam2": T21})
     out = tmp_path / "s"
     assert main(["import", str(bag), "--out", str(out), "--diameter", "0.2", "--split", "message"]) == 0
     s = load_session(out)
@@ -60,19 +67,7 @@ def test_two_camera_bag_gets_stereo_from_tf_static(tmp_path, capsys):
 def test_three_camera_bag_ties_each_camera_to_the_first(tmp_path):
     """A third camera's /tf_static link was dropped: only exactly two cameras got a stereo key."""
     T21, T31 = _T(3), _T(4)
-    bag = tmp_path / "three.bag"
-    rng = np.random.default_rng(0)
-    with BagWriter(bag, "ros1") as w:
-        ts = w.typestore
-        w.write("/tf_static", rosmsg.TF_STATIC, NS // 2, tf_static_msg(ts, 0, "cam2_optical", "cam1_optical", T21, True))
-        w.write("/tf_static", rosmsg.TF_STATIC, NS // 2, tf_static_msg(ts, 0, "cam3_optical", "cam1_optical", T31, True))
-        for i in range(4):
-            t = (1 + i) * NS
-            w.write("/sonar/points", rosmsg.POINTCLOUD2, t, rosmsg.cloud_msg(ts, t, "sonar", rng.normal(size=(20, 3)), None, True))
-            for c in ("cam1", "cam2", "cam3"):
-                w.write(f"/{c}/camera_info", rosmsg.CAMERA_INFO, t, rosmsg.info_msg(ts, t, f"{c}_optical", CAM, True))
-                w.write(f"/{c}/image_raw", rosmsg.IMAGE, t,
-                        rosmsg.image_msg(ts, t, f"{c}_optical", np.full((48, 64, 3), 80, np.uint8), True))
+    bag = _bag(tmp_path / "three.bag", {"cam2": T21, "cam3": T31})
     out = tmp_path / "s"
     assert main(["import", str(bag), "--out", str(out), "--diameter", "0.2", "--split", "message"]) == 0
     s = load_session(out)

@@ -7,20 +7,9 @@ from types import SimpleNamespace
 import cv2
 import numpy as np
 
-from calib_core.camera import CameraModel
 from calib_core.geometry import invert_T
 from calib_core.stereo_chain import chained_stereo, compose_with_cov, invert_with_cov, stereo_path
-
-
-def _cam(w=960, h=600, f=700.0) -> CameraModel:
-    return CameraModel(w, h, np.array([[f, 0, w / 2], [0, f, h / 2], [0, 0, 1]]), np.zeros(5))
-
-
-def _T(rvec, t) -> np.ndarray:
-    T = np.eye(4)
-    T[:3, :3] = cv2.Rodrigues(np.asarray(rvec, float))[0]
-    T[:3, 3] = t
-    return T
+from stereo_sessions import camera as _cam, detections, transform as _T
 
 
 def _perturbed(T, d):
@@ -82,25 +71,10 @@ def _three_camera_session(seed=3, wrong=(("p3", 30.0), ("p5", 120.0))):
     """cam1 sees 3 spheres (too few to vouch), cam3 all 8, cam2 5 right and 2 wrong; the session
     ties cam2 and cam3 to cam1 only."""
     rng = np.random.default_rng(seed)
-    n = 8
     cams = {c: _cam() for c in ("cam1", "cam2", "cam3")}
     T1 = _T([0.1, -0.2, 0.05], [0.2, -0.1, 0.3])
     T21, T31 = _T([0.0, 0.05, 0.0], [-0.25, 0.0, 0.0]), _T([0.03, 0.0, 0.0], [-0.12, 0.35, 0.0])
-    T = {"cam1": T1, "cam2": T21 @ T1, "cam3": T31 @ T1}
-    X_cam1 = np.column_stack([rng.uniform(-1, 1, n), rng.uniform(-0.4, 0.4, n), rng.uniform(2.5, 4.5, n)])
-    X_sonar = (invert_T(T1)[:3, :3] @ X_cam1.T).T + invert_T(T1)[:3, 3]
-    dets = {}
-    for i in range(n):
-        d = {"sonar": {"status": "auto", "center": X_sonar[i].tolist()}}
-        for c, Tc in T.items():
-            Xc = Tc[:3, :3] @ X_sonar[i] + Tc[:3, 3]
-            uv = cams[c].project(Xc[None])[0] + rng.normal(0, 0.3, 2)
-            d[c] = {"status": "auto", "center": uv.tolist(), "cov_px2": [0.09, 0, 0, 0.09],
-                    "range_m": float(np.linalg.norm(Xc) * (1 + rng.normal(0, 0.005)))}
-        dets[f"p{i}"] = d
-    for cid, off in wrong:
-        a = rng.uniform(0, 2 * np.pi)
-        dets[cid]["cam2"]["center"] = (np.asarray(dets[cid]["cam2"]["center"]) + off * np.array([np.cos(a), np.sin(a)])).tolist()
+    dets = detections(cams, {"cam1": T1, "cam2": T21 @ T1, "cam3": T31 @ T1}, rng, 8, wrong)
     for cid in ("p0", "p1", "p2", "p4", "p6"):
         dets[cid]["cam1"] = {"status": "auto", "reason": "no round outline"}
     dets["p7"]["cam2"] = {"status": "auto", "reason": "no round outline"}

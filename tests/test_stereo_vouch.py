@@ -4,25 +4,12 @@ tenth round: cam2 had 3 right and 2 wrong plain detections, and both wrong ones 
 
 from types import SimpleNamespace
 
-import cv2
 import numpy as np
 
-from calib_core.camera import CameraModel
-from calib_core.geometry import invert_T
 from calib_core.stereo_vouch import VOUCH_CHI2, stereo_predictions, vouch_chi2
+from stereo_sessions import camera as _cam, detections, transform as _T
 
 RADIUS_M = 0.3
-
-
-def _cam(w=960, h=600, f=700.0) -> CameraModel:
-    return CameraModel(w, h, np.array([[f, 0, w / 2], [0, f, h / 2], [0, 0, 1]]), np.zeros(5))
-
-
-def _T(rvec, t) -> np.ndarray:
-    T = np.eye(4)
-    T[:3, :3] = cv2.Rodrigues(np.asarray(rvec, float))[0]
-    T[:3, 3] = t
-    return T
 
 
 def _session(n=8, seed=3, wrong=(("p3", 26.0), ("p5", 134.0)), lost=("p1", "p6", "p7")):
@@ -31,22 +18,7 @@ def _session(n=8, seed=3, wrong=(("p3", 26.0), ("p5", 134.0)), lost=("p1", "p6",
     cams = {"cam1": _cam(), "cam2": _cam()}
     T1 = _T([0.1, -0.2, 0.05], [0.2, -0.1, 0.3])
     T21 = _T([0.0, 0.05, 0.0], [-0.25, 0.0, 0.0])
-    T = {"cam1": T1, "cam2": T21 @ T1}
-    X_cam1 = np.column_stack([rng.uniform(-1, 1, n), rng.uniform(-0.4, 0.4, n), rng.uniform(2.5, 4.5, n)])
-    X_sonar = (invert_T(T1)[:3, :3] @ X_cam1.T).T + invert_T(T1)[:3, 3]
-    dets = {}
-    for i in range(n):
-        cid = f"p{i}"
-        d = {"sonar": {"status": "auto", "center": X_sonar[i].tolist()}}
-        for c, Tc in T.items():
-            Xc = Tc[:3, :3] @ X_sonar[i] + Tc[:3, 3]
-            uv = cams[c].project(Xc[None])[0] + rng.normal(0, 0.3, 2)
-            d[c] = {"status": "auto", "center": uv.tolist(), "cov_px2": [0.09, 0, 0, 0.09],
-                    "range_m": float(np.linalg.norm(Xc) * (1 + rng.normal(0, 0.005)))}
-        dets[cid] = d
-    for cid, off in wrong:
-        a = rng.uniform(0, 2 * np.pi)
-        dets[cid]["cam2"]["center"] = (np.asarray(dets[cid]["cam2"]["center"]) + off * np.array([np.cos(a), np.sin(a)])).tolist()
+    dets = detections(cams, {"cam1": T1, "cam2": T21 @ T1}, rng, n, wrong)
     for cid in lost:
         dets[cid]["cam2"] = {"status": "auto", "reason": "no round outline"}
     session = SimpleNamespace(stereo={"T_cam2_cam1": T21}, cameras={"cam1": None, "cam2": None}, raw={},

@@ -21,6 +21,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from calib_core.geometry import invert_T
+from calib_core.stereo_chain import compose_with_cov, invert_with_cov
 from calib_core.solve.model import RigState, per_camera_stats
 from calib_core.solve.refine import (Link, RigProblem, covariance_from_jacobian, jacobian, pose_covariance, refine,
                                      weights_for)
@@ -39,16 +40,9 @@ def default_stereo_cov() -> np.ndarray:
 
 
 def cov_of_inverse(T_a_b: np.ndarray, cov_ab: np.ndarray) -> np.ndarray:
-    """6x6 covariance of ``T_b_a`` from that of ``T_a_b`` (rotation vector rad, then translation m;
-    the solver's perturbation R' = exp(dr) R, t' = t + dt): dr' = -R^T dr, dt' = -R^T dt - R^T [t]x dr."""
-    R, t = np.asarray(T_a_b, float)[:3, :3], np.asarray(T_a_b, float)[:3, 3]
-    tx = np.array([[0.0, -t[2], t[1]], [t[2], 0.0, -t[0]], [-t[1], t[0], 0.0]])
-    J = np.zeros((6, 6))
-    J[:3, :3] = -R.T
-    J[3:, :3] = -R.T @ tx
-    J[3:, 3:] = -R.T
-    C = J @ np.asarray(cov_ab, float) @ J.T
-    return 0.5 * (C + C.T)
+    """6x6 covariance of ``T_b_a`` from that of ``T_a_b`` (the solver's perturbation; see
+    :func:`calib_core.stereo_chain.invert_with_cov`)."""
+    return invert_with_cov(T_a_b, cov_ab)[1]
 
 
 @dataclass
@@ -141,16 +135,9 @@ def stereo_share_of_scale(problem: RigProblem, state: RigState, robust: str | No
 
 
 def cov_of_product(T_a_b: np.ndarray, T_b_c: np.ndarray, cov_ab: np.ndarray, cov_bc: np.ndarray) -> np.ndarray:
-    """6x6 covariance of ``T_a_c = T_a_b T_b_c`` from those of two independent factors (rotation
-    vector rad, then translation m; perturbation R' = exp(dr) R, t' = t + dt):
-    dr = dr_ab + R_ab dr_bc, dt = dt_ab - [R_ab t_bc]x dr_ab + R_ab dt_bc."""
-    R, u = np.asarray(T_a_b, float)[:3, :3], np.asarray(T_a_b, float)[:3, :3] @ np.asarray(T_b_c, float)[:3, 3]
-    ux = np.array([[0.0, -u[2], u[1]], [u[2], 0.0, -u[0]], [-u[1], u[0], 0.0]])
-    Ja, Jb = np.eye(6), np.zeros((6, 6))
-    Ja[3:, :3] = -ux
-    Jb[:3, :3] = Jb[3:, 3:] = R
-    C = Ja @ np.asarray(cov_ab, float) @ Ja.T + Jb @ np.asarray(cov_bc, float) @ Jb.T
-    return 0.5 * (C + C.T)
+    """6x6 covariance of ``T_a_c = T_a_b T_b_c`` from those of two independent factors (see
+    :func:`calib_core.stereo_chain.compose_with_cov`)."""
+    return compose_with_cov(T_a_b, cov_ab, T_b_c, cov_bc)[1]
 
 
 def find_stereo(stereo: dict, a: str, b: str) -> np.ndarray | None:
