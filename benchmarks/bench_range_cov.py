@@ -67,7 +67,7 @@ def capture_case(sensor: str, holder: str, seeds, tol_m: float, cache) -> dict:
     r_est = 0.3 if sensor == "lidar16" else 0.2
     width = estimate_beam_width_deg([_cloud(cache, s, sensor, holder, r_est)[0] for s in range(8)],
                                     r_est, 1.0).beam_width_deg
-    E, V, n_wrong, n_refused = [], [], 0, 0
+    E, V, D, n_wrong, n_refused = [], [], [], 0, 0
     for seed in seeds:
         P, c, r = _cloud(cache, seed, sensor, holder)
         det = detect_sphere_in_cloud(P, r, width)
@@ -80,7 +80,8 @@ def capture_case(sensor: str, holder: str, seeds, tol_m: float, cache) -> dict:
         e, v = axis_z2(det.center_sonar_m, det.cov_sonar_m2, c)
         E.append(e)
         V.append(v)
-    return {"E": np.array(E).reshape(-1, 3), "V": np.array(V).reshape(-1, 3), "width": width,
+        D.append(np.linalg.norm(c))
+    return {"E": np.array(E).reshape(-1, 3), "V": np.array(V).reshape(-1, 3), "width": width, "D": np.array(D),
             "wrong": n_wrong, "refused": n_refused}
 
 
@@ -91,7 +92,7 @@ def sweep_case(preset: str, seeds, tol_m: float, cache: Path) -> dict:
     from calib_core.session import load_session
     from calib_core.synth.ground_truth import load_ground_truth
 
-    E, V, wrong, refused, widths = [], [], 0, 0, []
+    E, V, D, wrong, refused, widths = [], [], [], 0, 0, []
     for seed in seeds:
         root = _sweep_session(cache, preset, seed, 0.5)
         gt, data = load_ground_truth(root), SessionData(load_session(root))
@@ -111,30 +112,48 @@ def sweep_case(preset: str, seeds, tol_m: float, cache: Path) -> dict:
                 err, v = axis_z2(e["center"], e["cov_m2"], truth)
                 E.append(err)
                 V.append(v)
-    return {"E": np.array(E).reshape(-1, 3), "V": np.array(V).reshape(-1, 3),
+                D.append(np.linalg.norm(truth))
+    return {"E": np.array(E).reshape(-1, 3), "V": np.array(V).reshape(-1, 3), "D": np.array(D),
             "width": float(np.median(widths)), "wrong": wrong, "refused": refused}
 
 
 HEADER = ("| case | width deg | right | wrong/refused | z2 along | z2 horiz | z2 vert | z2 all | med z2 | "
-          "rms/sd along | horiz | vert | sd mm along | horiz | vert |")
+          "z2 all less a common angle | rms/sd along | horiz | vert | sd mm along | horiz | vert |")
+
+
+def less_common_angle(E: np.ndarray, D: np.ndarray) -> np.ndarray:
+    """The errors less the case's mean angular offset across the ray (what a beam pointing
+    offset of the sensor, i.e. a rotation of its frame, gives every capture alike)."""
+    out = E.copy()
+    out[:, 1:] -= np.outer(D, (E[:, 1:] / D[:, None]).mean(0))
+    return out
 
 
 def row(name: str, res: dict) -> str:
     E, V = res["E"], res["V"]
     if not len(E):
-        return f"| {name} | {res['width']:.3f} | 0 | {res['wrong']}/{res['refused']} |" + " - |" * 11
+        return f"| {name} | {res['width']:.3f} | 0 | {res['wrong']}/{res['refused']} |" + " - |" * 12
     Z = E**2 / V
+    z_less = float((less_common_angle(E, res["D"]) ** 2 / V).mean())
     ratio = np.sqrt((E**2).mean(0) / V.mean(0))
     sd = np.sqrt(V.mean(0)) * 1000
     return (f"| {name} | {res['width']:.3f} | {len(E)} | {res['wrong']}/{res['refused']} | "
-            + " | ".join(f"{z:.2f}" for z in Z.mean(0)) + f" | {Z.mean():.2f} | {np.median(Z):.2f} | "
+            + " | ".join(f"{z:.2f}" for z in Z.mean(0)) + f" | {Z.mean():.2f} | {np.median(Z):.2f} | {z_less:.2f} | "
             + " | ".join(f"{q:.2f}" for q in ratio) + " | " + " | ".join(f"{s:.2f}" for s in sd) + " |")
 
 
 def pooled(name: str, results: list[dict]) -> str:
-    return row(name, {"E": np.vstack([r["E"] for r in results]), "V": np.vstack([r["V"] for r in results]),
+    """One row over several cases (the common angle is removed per case)."""
+    less = [less_common_angle(r["E"], r["D"]) if len(r["E"]) else r["E"] for r in results]
+    E, V = np.vstack([r["E"] for r in results]), np.vstack([r["V"] for r in results])
+    text = row(name, {"E": E, "V": V, "D": np.concatenate([r["D"] for r in results]),
                       "width": float(np.median([r["width"] for r in results])),
                       "wrong": sum(r["wrong"] for r in results), "refused": sum(r["refused"] for r in results)})
+    if not len(E):
+        return text
+    cells = text.split(" | ")
+    cells[9] = f"{float((np.vstack(less) ** 2 / V).mean()):.2f}"
+    return " | ".join(cells)
 
 
 def main(argv=None) -> int:
@@ -152,7 +171,7 @@ def main(argv=None) -> int:
         args.cache.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
     print(HEADER)
-    print("|" + "---|" * 15)
+    print("|" + "---|" * 16)
     if args.sweep:
         import tempfile
         cache = args.cache or Path(tempfile.mkdtemp(prefix="bench_range_cov_"))

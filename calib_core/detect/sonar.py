@@ -52,6 +52,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from calib_core.detect.sonar_cov import footprint_averaged
 from calib_core.detect.sonar_fit import FitResult, angle_to_axis_rad, cone_residuals, fit_sphere
 from calib_core.detect.sonar_outline import (
     attached_sectors,
@@ -679,6 +680,7 @@ def _final_fits(X, j: _Judged, r, h, method, noise_m: float = float("nan")):
             return None
     if method == "cone-model":
         cone = _away_from_holder(X, cone, j.radius_fit_m, h, noise_m, other_size)
+        cone = footprint_averaged(X, cone, h, other_size)
     apparent = fit_sphere(Xj, cone.center_m, r, model="euclid", free_radius=True,
                           sigma0_m=max(cone.sigma_m, 2e-3))
     if method == "cone-model":
