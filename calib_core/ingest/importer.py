@@ -193,7 +193,7 @@ class _Backgrounds:
         if self._set:
             return
         self._set = True
-        from calib_core.detect.image import background_model
+        from calib_core.detect.image.detect import background_model
 
         for cam, frames in self.frames.items():
             if frames:

@@ -91,7 +91,7 @@ def import_video(video: Path, scans_csv: Path, camera: str, out, opts: ImportOpt
 
 
 def _read_frames(cap, fps, video, windows, keeper: FrameKeeper, opts, rows, asm: Assembler, progress) -> list:
-    from calib_core.detect.image import background_model
+    from calib_core.detect.image.detect import background_model
 
     camera = next(iter(keeper.cams))
     bgw = opts.background_window_s
