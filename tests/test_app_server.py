@@ -36,7 +36,7 @@ def calibrate_fake(wb, T):
 def test_binds_loopback_by_default(wb):
     assert wb.host == "127.0.0.1" and wb.port > 0
     assert wb.url == f"http://127.0.0.1:{wb.port}/?token={wb.token}" and len(wb.token) >= 24
-    from sonarcal_cli import cmd_serve
+    from sonarcal_cli.commands import serve as cmd_serve
 
     p = argparse.ArgumentParser()
     cmd_serve.add_parser(p.add_subparsers())
