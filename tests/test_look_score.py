@@ -60,7 +60,7 @@ def test_score_words_built_once():
 
 
 def test_review_cell_shows_a_look_as_outline_seen_not_as_a_score():
-    from app.review import DOTS, cell
+    from app.panels.review import DOTS, cell
 
     c = cell({"status": "auto", "score": None, "score_text": "outline seen 62 %", "residual_px": 0.5, "found": True,
               "flag": None})
