@@ -1,6 +1,6 @@
 """Are the range side's stated sphere-centre covariances honest? Per sensor, per holder, per axis.
 
-Single captures (calib_core.synth.range_capture: exact truth, no cameras) of every range sensor
+Single captures (calib_core.synth.range.capture: exact truth, no cameras) of every range sensor
 (16-ring LiDAR, RGB-D, sonar, and the held-out 128-ring LiDAR, rosette LiDAR and active stereo)
 x holder (chair, table: resting on a surface; stick, hand: held), seeds ``--first`` ..; the beam
 width is estimated from 8 other captures of the pair, as a session would. Every right detection
@@ -28,9 +28,9 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from calib_core.detect.sonar import detect_sphere_in_cloud  # noqa: E402
-from calib_core.detect.sonar_beam import estimate_beam_width_deg  # noqa: E402
-from calib_core.synth.range_capture import SENSORS, range_capture  # noqa: E402
+from calib_core.detect.sonar.detect import detect_sphere_in_cloud  # noqa: E402
+from calib_core.detect.sonar.beam import estimate_beam_width_deg  # noqa: E402
+from calib_core.synth.range.capture import SENSORS, range_capture  # noqa: E402
 
 HOLDERS = ("chair", "table", "stick", "hand")
 AXES = ("along", "horiz", "vert")

@@ -1,14 +1,14 @@
-"""The range side's stated sphere-centre covariances against Monte Carlo (calib_core.detect.sonar_fit,
-calib_core.detect.sonar_cov): a fit's covariance must not claim more than its spread shows."""
+"""The range side's stated sphere-centre covariances against Monte Carlo (calib_core.detect.sonar.fit,
+calib_core.detect.sonar.cov): a fit's covariance must not claim more than its spread shows."""
 
 import numpy as np
 import pytest
 
-from calib_core.detect.sonar import detect_sphere_in_cloud
-from calib_core.detect.sonar_cov import footprint_averaged
-from calib_core.detect.sonar_fit import fit_sphere
-from calib_core.synth.range_capture import range_capture
-from calib_core.synth.range_sim import LidarConfig, lidar_directions
+from calib_core.detect.sonar.detect import detect_sphere_in_cloud
+from calib_core.detect.sonar.cov import footprint_averaged
+from calib_core.detect.sonar.fit import fit_sphere
+from calib_core.synth.range.capture import range_capture
+from calib_core.synth.range.sim import LidarConfig, lidar_directions
 
 
 def _ray_frame(c):

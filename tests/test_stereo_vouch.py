@@ -6,7 +6,7 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from calib_core.stereo_vouch import VOUCH_CHI2, stereo_predictions, vouch_chi2
+from calib_core.stereo.vouch import VOUCH_CHI2, stereo_predictions, vouch_chi2
 from stereo_sessions import camera as _cam, detections, transform as _T
 
 RADIUS_M = 0.3

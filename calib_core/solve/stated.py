@@ -16,7 +16,7 @@ The factor that stood in for this, ``SONAR_CENTRE_VARIANCE_FACTOR`` (1.5, solver
 range detector states its covariances honestly at their source (BENCHMARKS.md, "Twelfth round
 (helper rangecov ...)"): the fit's covariance no longer lets returns grazing the limb pin the
 centre across the ray, and a footprint the ball's own returns do not show no longer biases the
-centre (:mod:`calib_core.detect.sonar_cov`). On the range presets' sessions (seeds 41-45) the
+centre (:mod:`calib_core.detect.sonar.cov`). On the range presets' sessions (seeds 41-45) the
 centres' squared Mahalanobis per axis is 1.01 over 364 right detections (1.20 before), 0.94 less
 the sonar simulator's common beam-pointing angle. The mechanism is kept (a detector whose
 covariances are measured over-confident can be weighed by a factor here); an assumed covariance

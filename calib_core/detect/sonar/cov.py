@@ -1,8 +1,8 @@
 """The sphere centre a range detection states, and its covariance: what one cone fit misses.
 
-A cone fit's covariance (:func:`calib_core.detect.sonar_fit.fit_sphere`) is that of its model
+A cone fit's covariance (:func:`calib_core.detect.sonar.fit.fit_sphere`) is that of its model
 with the beam width taken as known. The width is the session's estimate
-(:mod:`calib_core.detect.sonar_beam`), one number for every capture, and what holds the ball
+(:mod:`calib_core.detect.sonar.beam`), one number for every capture, and what holds the ball
 (a seat, a table, a hand next to its outline) can make it read a small footprint where the
 sensor has none (an RGB-D camera or a LiDAR estimated at 0.05-0.12 deg). A footprint that is not
 there moves the centre by 1-4 mm along the ray and across it, many times the fit's stated sigma
@@ -25,9 +25,9 @@ from dataclasses import replace
 
 import numpy as np
 
-from calib_core.detect.sonar_fit import FitResult, cone_residuals, fit_sphere
+from calib_core.detect.sonar.fit import FitResult, cone_residuals, fit_sphere
 
-TRUNCATE_SIGMAS = 3.0  # the cost's truncation, as in the width scan (sonar_beam._WidthScan)
+TRUNCATE_SIGMAS = 3.0  # the cost's truncation, as in the width scan (sonar.beam._WidthScan)
 
 
 def truncated_cost(X: np.ndarray, center_m, radius_m: float, h: float, scale_m: float) -> float:

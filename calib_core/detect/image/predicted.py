@@ -1,6 +1,6 @@
 """A look for the sphere where another sensor predicts it: centre and apparent size known roughly.
 
-When the session's rough rig registration (:mod:`calib_core.disambiguate`) says where the sphere
+When the session's rough rig registration (:mod:`calib_core.disambiguate.image`) says where the sphere
 must be in an image and how large it must look, a half-visible, low-contrast outline (a ball the
 shade of the chair behind it, its top fading into the wall) is enough: the size is no longer a
 free parameter, so a short arc fixes the centre. Steps:
@@ -32,12 +32,12 @@ from __future__ import annotations
 import numpy as np
 
 from calib_core.camera import CameraModel
-from calib_core.detect.image_cone import (ConeFit, centre_uv_and_cov, normalize_near, orthonormal_basis,
+from calib_core.detect.image.cone import (ConeFit, centre_uv_and_cov, normalize_near, orthonormal_basis,
                                           px_per_rad, rays_from_xy, silhouette_uv, silhouette_xy)
-from calib_core.detect.image import CUT, NO_OUTLINE, prepare_background
-from calib_core.detect.image_range import cone_range_sigma_m, outline_range_floor_m
-from calib_core.detect.image_edges import gradient_magnitude, outward_normals
-from calib_core.detect.image_fit import (CORR_LENGTH_PX, EDGE_NOISE_FACTOR, EDGE_SPACING_PX, SYS_FRACTION, _Signal,
+from calib_core.detect.image.detect import CUT, NO_OUTLINE, prepare_background
+from calib_core.detect.image.apparent_range import cone_range_sigma_m, outline_range_floor_m
+from calib_core.detect.image.edges import gradient_magnitude, outward_normals
+from calib_core.detect.image.fit import (CORR_LENGTH_PX, EDGE_NOISE_FACTOR, EDGE_SPACING_PX, SYS_FRACTION, _Signal,
                                          clean_rms_px)
 from calib_core.detect.reasons import OUTLINE_SEEN_KEY, RANGE_PRIOR_KEY
 from calib_core.detect.types import ImageDetection

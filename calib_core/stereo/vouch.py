@@ -1,7 +1,7 @@
 """One camera's registration vouches for (or against) another's plain detections through the
 session's stereo transform.
 
-The session flow registers each camera to the sonar on its own (:mod:`calib_core.disambiguate`):
+The session flow registers each camera to the sonar on its own (:mod:`calib_core.disambiguate.image`):
 a camera with few plain detections, two of them wrong, cannot tell which are wrong (gym s48 cam2:
 3 right, 2 wrong, and both wrong centres went into the solve). When the session states a stereo
 transform ``T_b_a``, the better registered camera ``a`` predicts where camera ``b`` sees each
@@ -28,7 +28,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from calib_core.camera import CameraModel
-from calib_core.disambiguate import RANGE_REL_SIGMA
+from calib_core.disambiguate.image import RANGE_REL_SIGMA
 
 # the rate at which a right detection is refused (chi-square, 2 degrees of freedom): 1 in 1000
 VOUCH_FALSE_ALARM = 1e-3
