@@ -1,4 +1,4 @@
-"""The look at a predicted place and size (``calib_core.detect.image_predicted``) on held-out cases.
+"""The look at a predicted place and size (``calib_core.detect.image.predicted``) on held-out cases.
 
 For rendered single-image cases (``calib_core.synth.image_cases``, kinds chair and clutter, seeds
 from 1000), the prediction is the truth disturbed as a rough rig registration would disturb it
@@ -36,11 +36,11 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from calib_core.detect import image_predicted  # noqa: E402
-from calib_core.detect.image import prepare_background  # noqa: E402
-from calib_core.detect.image_cone import fit_cone, normalize_near  # noqa: E402
-from calib_core.detect.image_fit import CORR_LENGTH_PX, EDGE_SPACING_PX, _Signal  # noqa: E402
-from calib_core.detect.image_predicted import detect_at_prediction  # noqa: E402
+from calib_core.detect.image import predicted as image_predicted  # noqa: E402
+from calib_core.detect.image.detect import prepare_background  # noqa: E402
+from calib_core.detect.image.cone import fit_cone, normalize_near  # noqa: E402
+from calib_core.detect.image.fit import CORR_LENGTH_PX, EDGE_SPACING_PX, _Signal  # noqa: E402
+from calib_core.detect.image.predicted import detect_at_prediction  # noqa: E402
 from calib_core.detect.reasons import reason_kind  # noqa: E402
 from calib_core.synth.image_cases import render_case  # noqa: E402
 

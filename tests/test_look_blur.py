@@ -4,15 +4,15 @@ A ball carried during the exposure is smeared along the motion: its edge across 
 ramp, the wall's sharp edges show through it. With the size fixed by the prediction, a circle
 through those edges can sit anywhere across the ramp (carried-photo s5 p06: 3.35 px off with a
 stated 0.19 px). The look must read the ramp's middle and state the blur's floor (the free
-search's, calib_core.detect.image_blur), and leave a sharp ball's covariance alone.
+search's, calib_core.detect.image.blur), and leave a sharp ball's covariance alone.
 """
 
 import numpy as np
 import pytest
 
-from calib_core.detect.image_blur import blur_floor_px2
-from calib_core.detect.image_fit import SHARP_EDGE_WIDTH_PX
-from calib_core.detect.image_predicted import detect_at_prediction
+from calib_core.detect.image.blur import blur_floor_px2
+from calib_core.detect.image.fit import SHARP_EDGE_WIDTH_PX
+from calib_core.detect.image.predicted import detect_at_prediction
 from tests.test_detect_image_flow import RADIUS_M, _bricks, _cam, _draw_ball, _finish, _truth
 
 COLOUR = (200, 190, 60)

@@ -6,7 +6,7 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from calib_core.stereo_vouch import VOUCH_CHI2, VOUCH_FLOOR_PX, stereo_predictions, vouch_chi2
+from calib_core.stereo.vouch import VOUCH_CHI2, VOUCH_FLOOR_PX, stereo_predictions, vouch_chi2
 from stereo_sessions import camera as _cam, detections, transform as _T
 
 RADIUS_M = 0.3
@@ -67,7 +67,7 @@ def test_far_from_the_registrations_points_the_stated_sigma_grows_and_right_ones
     grows (leverage); the stated sigma must grow with it: no right detection beyond the test, the
     chi2 (2 dof) median near 2 ln 2 = 1.39 or below. Before (one detection's range error and a
     1.5 px floor wherever the prediction lay): 90 of 160 right detections refused."""
-    from calib_core.disambiguate import RANGE_REL_SIGMA, resolve_candidates
+    from calib_core.disambiguate.image import RANGE_REL_SIGMA, resolve_candidates
     from calib_core.geometry import invert_T
 
     cam, chi2 = _cam(), []

@@ -1,7 +1,7 @@
 """One camera's registration vouches for (or against) another's plain detections through the
 session's stereo transform.
 
-The session flow registers each camera to the sonar on its own (:mod:`calib_core.disambiguate`):
+The session flow registers each camera to the sonar on its own (:mod:`calib_core.disambiguate.image`):
 a camera with few plain detections, two of them wrong, cannot tell which are wrong (gym s48 cam2:
 3 right, 2 wrong, and both wrong centres went into the solve). When the session states a stereo
 transform ``T_b_a``, the better registered camera ``a`` predicts where camera ``b`` sees each
@@ -30,7 +30,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from calib_core.camera import CameraModel
-from calib_core.disambiguate import RANGE_REL_SIGMA
+from calib_core.disambiguate.image import RANGE_REL_SIGMA
 
 # the rate at which a right detection is refused (chi-square, 2 degrees of freedom): 1 in 1000
 VOUCH_FALSE_ALARM = 1e-3
@@ -62,7 +62,7 @@ def registration_cov(T_a_sonar: np.ndarray, support_sonar_m: np.ndarray, sigma_l
     """6x6 covariance (left rotation vector, additive translation) of the rigid registration
     ``T_a_sonar`` fitted to the sphere centres ``support_sonar_m`` (N,3), each seen by ``a`` with
     ``sigma_lat_px`` across its ray and RANGE_REL_SIGMA of its range along it. The registration is
-    an unweighted 3D fit (:func:`calib_core.disambiguate._rigid_fit`, Kabsch), so the covariance is
+    an unweighted 3D fit (:func:`calib_core.disambiguate.image._rigid_fit`, Kabsch), so the covariance is
     that estimator's (the sandwich H^-1 M H^-1), not the weighted optimum's."""
     H, M = np.zeros((6, 6)), np.zeros((6, 6))
     for X in np.asarray(support_sonar_m, float).reshape(-1, 3):

@@ -1,6 +1,6 @@
 """A look for the sphere where another sensor predicts it: centre and apparent size known roughly.
 
-When the session's rough rig registration (:mod:`calib_core.disambiguate`) says where the sphere
+When the session's rough rig registration (:mod:`calib_core.disambiguate.image`) says where the sphere
 must be in an image and how large it must look, a half-visible, low-contrast outline (a ball the
 shade of the chair behind it, its top fading into the wall) is enough: the size is no longer a
 free parameter, so a short arc fixes the centre. Steps:
@@ -35,13 +35,13 @@ import numpy as np
 from scipy.ndimage import gaussian_filter1d
 
 from calib_core.camera import CameraModel
-from calib_core.detect.image_blur import blur_floor_px2, blur_range_floor_m, is_blurred
-from calib_core.detect.image_cone import (ConeFit, centre_uv_and_cov, normalize_near, orthonormal_basis,
+from calib_core.detect.image.blur import blur_floor_px2, blur_range_floor_m, is_blurred
+from calib_core.detect.image.cone import (ConeFit, centre_uv_and_cov, normalize_near, orthonormal_basis,
                                           px_per_rad, rays_from_xy, silhouette_uv, silhouette_xy)
-from calib_core.detect.image import CUT, NO_OUTLINE, prepare_background
-from calib_core.detect.image_range import cone_range_sigma_m, outline_range_floor_m
-from calib_core.detect.image_edges import edge_widths, gradient_magnitude, outward_normals
-from calib_core.detect.image_fit import (BLUR_MAX_RADIUS_FRACTION, BLUR_SCALES_PX, CORR_LENGTH_PX, EDGE_NOISE_FACTOR,
+from calib_core.detect.image.detect import CUT, NO_OUTLINE, prepare_background
+from calib_core.detect.image.apparent_range import cone_range_sigma_m, outline_range_floor_m
+from calib_core.detect.image.edges import edge_widths, gradient_magnitude, outward_normals
+from calib_core.detect.image.fit import (BLUR_MAX_RADIUS_FRACTION, BLUR_SCALES_PX, CORR_LENGTH_PX, EDGE_NOISE_FACTOR,
                                          EDGE_SPACING_PX, SMALL_RADIUS_PX, SMOOTH_SIGMA_PX, SYS_FRACTION, _Signal,
                                          clean_rms_px)
 from calib_core.detect.reasons import OUTLINE_SEEN_KEY, RANGE_PRIOR_KEY
@@ -230,7 +230,7 @@ def _smoothed(cam, sig: _Signal, w0, a0: float, band: float, max_shift_q: float,
     A motion-smeared edge is a ramp whose gradient is a low plateau studded with the sharp edges
     of the still scene seen through it: with the size fixed, a circle through the studs can sit
     anywhere across the plateau, and the studs' own narrow peaks hide the blur from the raw
-    reading's edge widths. On profiles smoothed along the normals (image_fit's BLUR_SCALES_PX, as
+    reading's edge widths. On profiles smoothed along the normals (fit.BLUR_SCALES_PX, as
     pass 2 reads a smear) the gradient peaks at the ramp's middle, where the outline is, and the
     edge width (the smoothing taken out) measures the smear. Blurred when the first smoothed
     reading's edges are wider than a sharp photograph's; then the smoothest reading that still
@@ -240,7 +240,7 @@ def _smoothed(cam, sig: _Signal, w0, a0: float, band: float, max_shift_q: float,
     best, widths = raw, [raw.edge_width_px]
     for s in BLUR_SCALES_PX:
         if 2.3548 * s > BLUR_MAX_RADIUS_FRACTION * R:
-            break  # (no smoothing wider than a quarter radius: as image_fit's pass 2)
+            break  # (no smoothing wider than a quarter radius: as fit's pass 2)
         alt = _read(cam, sig, w0, a0, band, max_shift_q, seed, s)
         if alt is None or not (len(widths) > 1 or is_blurred(alt.edge_width_px)):
             break
@@ -272,7 +272,7 @@ def detect_at_prediction(image: np.ndarray, cam: CameraModel, sphere_radius_m: f
     reading = _read(*look, 0.0)
     if reading is None:
         return _not_found(nothing, looked_at=[round(float(x), 1) for x in uv_px])
-    if R >= SMALL_RADIUS_PX:  # (no smear on a small blob: as image_fit.outline_rms_limit_px)
+    if R >= SMALL_RADIUS_PX:  # (no smear on a small blob: as fit.outline_rms_limit_px)
         reading = _smoothed(*look, R, reading)
     det = _verdict(cam, reading, R, sphere_radius_m, uv_px)
     null = _null_support(cam, reading.q, reading.normal_of, reading.k, reading.fit, w0, *reading.basis)
@@ -311,7 +311,7 @@ def _verdict(cam, reading: _Reading, R: float, sphere_radius_m: float, uv_px) ->
     if support < MIN_SUPPORT:
         return _not_found(f"outline {100 * (1 - support):.0f} % hidden or too faint {WHERE} {where}", **extras)
     r_px = float(np.mean(np.linalg.norm(sil - sil.mean(axis=0), axis=1)))
-    # a blurred outline's plateau: the free search's systematic floor (image_blur), same rule
+    # a blurred outline's plateau: the free search's systematic floor (image.blur), same rule
     cov = cov + ((SYS_FRACTION * fit.sigma_px) ** 2 + blur_floor_px2(r_px, reading.edge_width_px)) * np.eye(2)
     range_m = float(sphere_radius_m / np.sin(fit.a_rad))
     rng_sigma = float(np.linalg.norm([cone_range_sigma_m(sphere_radius_m, fit.a_rad, fit.cov_params[2, 2]),

@@ -2,20 +2,20 @@
 
 A motion-smeared or defocused edge has a wide gradient plateau; the sub-pixel peak lands
 anywhere on it, and it is the same smear for neighbouring normals, so the scatter does not
-average out over the outline. The roundness limit of :func:`image_fit.outline_rms_limit_px`
+average out over the outline. The roundness limit of :func:`calib_core.detect.image.fit.outline_rms_limit_px`
 carries that scatter beyond a sharp edge's ((w^2 - w0^2) / 12 for a median edge width w); the
 same excess is the floor of the centre's covariance per axis and, since it moves the whole
 outline in or out together, of the range (range / apparent radius). Zero for a sharp edge.
 
-Used by the free search's pass 2 (:mod:`calib_core.detect.image_fit`, whose formula this is)
-and by the look at a predicted place (:mod:`calib_core.detect.image_predicted`).
+Used by the free search's pass 2 (:mod:`calib_core.detect.image.fit`, whose formula this is)
+and by the look at a predicted place (:mod:`calib_core.detect.image.predicted`).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from calib_core.detect.image_fit import SHARP_EDGE_WIDTH_PX, clean_rms_px, outline_rms_limit_px
+from calib_core.detect.image.fit import SHARP_EDGE_WIDTH_PX, clean_rms_px, outline_rms_limit_px
 
 
 def blur_floor_px2(radius_px: float, edge_width_px: float) -> float:
