@@ -12,9 +12,9 @@ detections to predict on its own, the prediction is a place to look.
 
 The prediction's uncertainty per image axis (px), root sum of squares of:
 - the error of ``a``'s registration where it predicts, propagated from its N plain detections
-  (:func:`registration_cov`): each detection's centre scatters across ``a``'s ray by ``a``'s
-  measured scatter (RMS distance / sqrt 2, corrected for the 6 fitted parameters) and along it by
-  one detection's range error (RANGE_REL_SIGMA); the rigid fit's 6x6 covariance carried to the
+  (:func:`registration_cov`): each detection's centre scatters along ``a``'s ray by one
+  detection's range error (RANGE_REL_SIGMA) and across it by the image scatter that, with those
+  range errors, explains the registration's image residuals (:func:`lateral_scatter_px`); the rigid fit's 6x6 covariance carried to the
   predicted centre and through the stereo transform into ``b``'s image (largest axis), so a
   range error seen across the baseline and a prediction far from the N points (leverage) are
   both in it; with a floor VOUCH_FLOOR_PX (``b``'s own lens and intrinsics);
@@ -66,16 +66,46 @@ def registration_cov(T_a_sonar: np.ndarray, support_sonar_m: np.ndarray, sigma_l
     that estimator's (the sandwich H^-1 M H^-1), not the weighted optimum's."""
     H, M = np.zeros((6, 6)), np.zeros((6, 6))
     for X in np.asarray(support_sonar_m, float).reshape(-1, 3):
-        RX = T_a_sonar[:3, :3] @ X
-        P = RX + T_a_sonar[:3, 3]
-        r = float(np.linalg.norm(P))
-        u = P / r
-        S = (sigma_lat_px * r / fx_a) ** 2 * (np.eye(3) - np.outer(u, u)) + (RANGE_REL_SIGMA * r) ** 2 * np.outer(u, u)
-        J = np.hstack([-_skew(RX), np.eye(3)])
+        J, _, S_lat, S_rng = _point_terms(T_a_sonar, X, fx_a)
         H += J.T @ J
-        M += J.T @ S @ J
+        M += J.T @ (sigma_lat_px ** 2 * S_lat + S_rng) @ J
     Hi = np.linalg.pinv(H)
     return Hi @ M @ Hi
+
+
+# the least image scatter across the rays that a's residuals are read as (px per axis): a sharp
+# outline's centre is good to about this
+MIN_LATERAL_PX = 0.1
+
+
+def _point_terms(T_a_sonar: np.ndarray, X: np.ndarray, fx_a: float) -> tuple:
+    """(J 3x6 of the registered centre on the registration, A 2x3 of a's pixel on that centre,
+    the centre's 3x3 covariance across the ray at 1 px, and along it at RANGE_REL_SIGMA)."""
+    RX = T_a_sonar[:3, :3] @ X
+    P = RX + T_a_sonar[:3, 3]
+    r = float(np.linalg.norm(P))
+    u = P / r
+    A = fx_a / P[2] * np.array([[1.0, 0.0, -P[0] / P[2]], [0.0, 1.0, -P[1] / P[2]]])
+    return (np.hstack([-_skew(RX), np.eye(3)]), A, (r / fx_a) ** 2 * (np.eye(3) - np.outer(u, u)),
+            (RANGE_REL_SIGMA * r) ** 2 * np.outer(u, u))
+
+
+def lateral_scatter_px(T_a_sonar: np.ndarray, support_sonar_m: np.ndarray, residual_px: float, fx_a: float) -> float:
+    """a's image scatter across the rays (px per axis) that, with the stated range error along them,
+    gives the registration's image residual RMS ``residual_px``: the unweighted fit's residuals are
+    (I - G) e (G its hat matrix), so E[sum |uv residual|^2] = a s^2 + b, and s^2 = (N rms^2 - b) / a.
+    The range errors' share of the residuals is not read as image scatter (it is counted along the
+    rays already)."""
+    from scipy.linalg import block_diag
+
+    terms = [_point_terms(T_a_sonar, X, fx_a) for X in np.asarray(support_sonar_m, float).reshape(-1, 3)]
+    J = np.vstack([t[0] for t in terms])
+    Q = np.eye(len(J)) - J @ np.linalg.pinv(J.T @ J) @ J.T
+    A = block_diag(*[t[1] for t in terms])
+    a = float(np.trace(A @ Q @ block_diag(*[t[2] for t in terms]) @ Q.T @ A.T))
+    b = float(np.trace(A @ Q @ block_diag(*[t[3] for t in terms]) @ Q.T @ A.T))
+    s2 = (len(terms) * residual_px ** 2 - b) / max(a, 1e-12)
+    return float(np.sqrt(max(s2, MIN_LATERAL_PX ** 2)))
 
 
 def _registration_px(cam_b: CameraModel, T_b_a: np.ndarray, T_a_sonar: np.ndarray, cov6: np.ndarray, X: np.ndarray,
@@ -102,10 +132,7 @@ def stereo_predictions(cam_b: CameraModel, T_b_a: np.ndarray, cov_stereo6: np.nd
     n = len(support)
     cov_reg = None
     if n >= 3:
-        # the residual RMS of a fit with 6 parameters to N points (3 coordinates) underestimates
-        # their scatter by sqrt((N - 2) / N)
-        sigma_lat = residual_px_a / np.sqrt(2.0) * np.sqrt(n / max(n - 2.0, 1.0))
-        cov_reg = registration_cov(T_a_sonar, support, sigma_lat, fx_a)
+        cov_reg = registration_cov(T_a_sonar, support, lateral_scatter_px(T_a_sonar, support, residual_px_a, fx_a), fx_a)
     out = {}
     for cid, X in centers_sonar_m.items():
         X = np.asarray(X, float)
