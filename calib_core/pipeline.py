@@ -325,8 +325,8 @@ def _stereo_predictions(data: SessionData, detections: dict, only: set) -> dict:
     stereo, cams = data.session.stereo, list(data.session.cameras)
     if not stereo or len(cams) < 2:
         return {}
-    regs = {c: _camera_registration(data, detections, c, only)[:2] for c in cams}
-    regs = {c: (res, len(cands)) for c, (res, cands) in regs.items()}
+    full = {c: _camera_registration(data, detections, c, only)[:2] for c in cams}
+    regs = {c: (res, len(cands)) for c, (res, cands) in full.items()}
     out = {}
     for b in cams:
         a = _stereo_source(regs, b, stereo)
@@ -335,8 +335,25 @@ def _stereo_predictions(data: SessionData, detections: dict, only: set) -> dict:
         T_b_a, cov, _ = chained_stereo(stereo, lambda k: key_stereo_cov(data.session, k)[0], a, b)
         res_a = regs[a][0]
         out[b] = stereo_predictions(data.camera(b), T_b_a, cov, res_a.T_cam_sonar, res_a.residual_px,
-                                    data.camera(a).fx, _sonar_centers(detections), a)
+                                    data.camera(a).fx, _sonar_centers(detections), a,
+                                    _support_centers(data.camera(a), detections, a, *full[a]))
     return out
+
+
+def _support_centers(model, detections: dict, cam: str, res, cands: dict) -> np.ndarray:
+    """(N,3) the sonar centres of camera ``cam``'s plain detections that its registration ``res``
+    rests on: one candidate, a measured centre, within 3 x its scatter (at least 3 px) of its projection."""
+    T, tol = res.T_cam_sonar, max(3.0, 3.0 * res.residual_px)
+    out = []
+    for cid, k in cands.items():
+        e = detections[cid][cam]
+        if len(k) != 1 or e.get("center") is None:
+            continue
+        X = np.asarray(detections[cid]["sonar"]["center"], float)
+        uv = model.project((T[:3, :3] @ X + T[:3, 3])[None])[0]
+        if np.hypot(*(uv - np.asarray(e["center"], float))) <= tol:
+            out.append(X)
+    return np.asarray(out, float).reshape(-1, 3)
 
 
 def _stereo_refusals(data: SessionData, detections: dict, only: set) -> dict:
