@@ -49,7 +49,8 @@ def depth_buffer(uv_px: np.ndarray, depth_m: np.ndarray, valid: np.ndarray, widt
     return z[:-1].reshape(height, width)
 
 
-def _zimage(pix, depth32, width, height) -> np.ndarray:
+def zimage(pix, depth32, width, height) -> np.ndarray:
+    """Flat (H*W+1,) nearest depth per pixel, unsplatted (inf where empty and in the last slot)."""
     z = np.full(height * width + 1, np.inf, np.float32)
     np.minimum.at(z, pix, depth32)
     return z
@@ -68,7 +69,26 @@ CELL_SHIFT = 5  # 32-px cells
 def splatted_zbuffer(pix, depth32, width, height, splat_radius_px, layer_m) -> tuple[np.ndarray, np.ndarray | None]:
     """Flat (H*W+1,) splatted z-buffer (the last slot, for invalid points, is inf) and the
     per-cell radius grid of the adaptive splat (None for a fixed radius)."""
-    z = _zimage(pix, depth32, width, height)
+    z = zimage(pix, depth32, width, height)
+    return z, splat_zimage(z, width, height, splat_radius_px, layer_m)
+
+
+NEAR_REACH_PX = 2.0 * np.sqrt(2.0)  # farthest two points snapped into a 3x3 block of pixels can be
+
+
+def nearest_in_block(z, width, height) -> np.ndarray:
+    """Flat (H*W+1,) nearest unsplatted depth within each pixel's 3x3 block (inf in the last slot):
+    an occluder at most :data:`NEAR_REACH_PX` px from any point of that pixel."""
+    out = np.empty_like(z)
+    out[:-1] = cv2.erode(z[:-1].reshape(height, width), np.ones((3, 3), np.uint8),
+                         borderType=cv2.BORDER_CONSTANT, borderValue=np.inf).ravel()
+    out[-1] = np.inf
+    return out
+
+
+def splat_zimage(z, width, height, splat_radius_px, layer_m) -> np.ndarray | None:
+    """Splat a flat (H*W+1,) z-image in place; returns the adaptive splat's per-cell radius grid
+    (None for a fixed radius)."""
     img = z[:-1].reshape(height, width)
     r_cell = None
     if isinstance(splat_radius_px, str):
@@ -78,7 +98,7 @@ def splatted_zbuffer(pix, depth32, width, height, splat_radius_px, layer_m) -> t
     elif int(splat_radius_px) > 0:
         img[:] = cv2.erode(img, _splat_kernel(int(splat_radius_px)), borderType=cv2.BORDER_CONSTANT, borderValue=np.inf)
     z[-1] = np.inf
-    return z, r_cell
+    return r_cell
 
 
 def _front_counts(padded: np.ndarray, g: int, layer_m: float) -> tuple[np.ndarray, np.ndarray]:
