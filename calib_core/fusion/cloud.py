@@ -24,7 +24,7 @@ import cv2
 import numpy as np
 
 from calib_core.camera import CameraModel
-from calib_core.fusion.zbuffer import (CELL_SHIFT, NEAR_REACH_PX, disk_kernel, nearest_in_block, pixel_index,
+from calib_core.fusion.zbuffer import (CELL_SHIFT, NEAR_REACH_PX, OWN_REACH_PX, disk_kernel, nearest_in_block, pixel_index,
                                       splat_zimage, zimage)
 
 _MAX_REMAP_COLS = 4096  # cv2.remap needs maps smaller than SHRT_MAX per side
@@ -221,12 +221,12 @@ def visible_points(uv_px, depth_m, valid, cam: CameraModel, splat_radius_px="aut
 
     The tolerance is ``depth_tolerance_m`` plus ``slope`` x the occluder's lateral reach in metres
     (reach_px x depth / fx): a surface inclined by atan(slope) (45 deg by default) must not
-    hide its own points under its splats. Two tests, both must pass: against the splatted
+    hide its own points under its splats. Three tests, all must pass: against the splatted
     depth with the splat radius as reach, and against the unsplatted nearest depth of the
-    point's 3x3 pixel block with that block's reach (2.8 px). The second keeps a wide splat's
-    tolerance (24 px at 4.5 m and fx 385: 0.33 m) from letting through a back surface right
-    behind a front point. Approximation: the radius used is the one of the cell (or the fixed
-    one) where the point falls, not the occluder's.
+    point's own pixel (reach 1.4 px) and of its 3x3 pixel block (reach 2.8 px). The last two
+    keep a wide splat's tolerance (24 px at 4.5 m and fx 385: 0.33 m) from letting through a
+    back surface right behind a front point. Approximation: the splat radius used is the one
+    of the cell (or the fixed one) where the point falls, not the occluder's.
     """
     w, h = cam.width_px, cam.height_px
     uv = np.asarray(uv_px).reshape(-1, 2)
@@ -234,7 +234,11 @@ def visible_points(uv_px, depth_m, valid, cam: CameraModel, splat_radius_px="aut
     depth32 = np.asarray(depth_m, np.float32)
     ui, vi, pix = pixel_index(uv, valid, w, h)
     z = zimage(pix, depth32, w, h)
-    z_near = nearest_in_block(z, w, h)
+    per_m = np.float32(slope / cam.fx) * depth32  # metres of depth per pixel of reach, per point
+    tol = np.float32(depth_tolerance_m)
+    with np.errstate(invalid="ignore"):
+        vis = depth32 <= z[pix] + tol + np.float32(OWN_REACH_PX) * per_m
+        vis &= depth32 <= nearest_in_block(z, w, h)[pix] + tol + np.float32(NEAR_REACH_PX) * per_m
     r_cell = splat_zimage(z, w, h, splat_radius_px, depth_tolerance_m)
     if r_cell is None:
         r_pt = np.float32(max(0, int(splat_radius_px)))
@@ -243,10 +247,8 @@ def visible_points(uv_px, depth_m, valid, cam: CameraModel, splat_radius_px="aut
         cell *= r_cell.shape[1]
         cell += ui >> CELL_SHIFT
         r_pt = r_cell.astype(np.float32).ravel()[cell]
-    per_m = np.float32(slope / cam.fx) * depth32  # metres of depth per pixel of reach, per point
     with np.errstate(invalid="ignore"):
-        vis = depth32 <= z[pix] + np.float32(depth_tolerance_m) + r_pt * per_m
-        vis &= depth32 <= z_near[pix] + np.float32(depth_tolerance_m) + np.float32(NEAR_REACH_PX) * per_m
+        vis &= depth32 <= z[pix] + tol + r_pt * per_m
     vis &= valid
     return vis
 

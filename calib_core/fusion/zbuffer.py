@@ -73,6 +73,7 @@ def splatted_zbuffer(pix, depth32, width, height, splat_radius_px, layer_m) -> t
     return z, splat_zimage(z, width, height, splat_radius_px, layer_m)
 
 
+OWN_REACH_PX = float(np.sqrt(2.0))  # farthest two points snapped into one pixel can be
 NEAR_REACH_PX = 2.0 * np.sqrt(2.0)  # farthest two points snapped into a 3x3 block of pixels can be
 
 
