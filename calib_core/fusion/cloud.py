@@ -24,8 +24,7 @@ import cv2
 import numpy as np
 
 from calib_core.camera import CameraModel
-from calib_core.fusion.zbuffer import (CELL_SHIFT, NEAR_REACH_PX, OWN_REACH_PX, disk_kernel, nearest_in_block, pixel_index,
-                                      splat_zimage, zimage)
+from calib_core.fusion.zbuffer import disk_kernel, pixel_index, visibility_bound
 
 _MAX_REMAP_COLS = 4096  # cv2.remap needs maps smaller than SHRT_MAX per side
 
@@ -232,23 +231,10 @@ def visible_points(uv_px, depth_m, valid, cam: CameraModel, splat_radius_px="aut
     uv = np.asarray(uv_px).reshape(-1, 2)
     valid = np.asarray(valid, bool)
     depth32 = np.asarray(depth_m, np.float32)
-    ui, vi, pix = pixel_index(uv, valid, w, h)
-    z = zimage(pix, depth32, w, h)
-    per_m = np.float32(slope / cam.fx) * depth32  # metres of depth per pixel of reach, per point
-    tol = np.float32(depth_tolerance_m)
+    _, _, pix = pixel_index(uv, valid, w, h)
+    bound = visibility_bound(pix, depth32, w, h, splat_radius_px, depth_tolerance_m, slope / cam.fx)
     with np.errstate(invalid="ignore"):
-        vis = depth32 <= z[pix] + tol + np.float32(OWN_REACH_PX) * per_m
-        vis &= depth32 <= nearest_in_block(z, w, h)[pix] + tol + np.float32(NEAR_REACH_PX) * per_m
-    r_cell = splat_zimage(z, w, h, splat_radius_px, depth_tolerance_m)
-    if r_cell is None:
-        r_pt = np.float32(max(0, int(splat_radius_px)))
-    else:
-        cell = vi >> CELL_SHIFT
-        cell *= r_cell.shape[1]
-        cell += ui >> CELL_SHIFT
-        r_pt = r_cell.astype(np.float32).ravel()[cell]
-    with np.errstate(invalid="ignore"):
-        vis &= depth32 <= z[pix] + tol + r_pt * per_m
+        vis = depth32 <= bound[pix]
     vis &= valid
     return vis
 
