@@ -294,10 +294,10 @@ def _pass1_usable(fit1: ConeFit | None, seg_in: np.ndarray, R: float) -> bool:
             and fit1.sigma_px <= max(PASS1_MAX_RMS_PX, PASS1_MAX_RMS_FRAC * R))
 
 
-# ---- pass-1 rescue: a start for a candidate none of the readings gave one (the arc is
-# refitted by nothing, the smoothed reading draws from its own random stream: the draws of
-# every other fit stay as they were). Pass 2 then
-# grows the start into the whole outline and is judged as usual.
+# ---- pass-1 rescue, without a background: a start for a candidate none of the readings gave
+# one. The arc draws nothing (it is a reading's fit kept), the smoothed reading and the pass 2
+# after either draw from their own random stream: every other fit's draws stay as they were.
+# Pass 2 grows the start into the whole outline and is judged as usual.
 RESCUE_READINGS = ("arc", "smoothed")
 # a clean partial arc: on at least ARC_MIN_SHARE of the rays (half of the half-visible outline
 # the detector accepts: a backrest's or a contact shadow's edges take the outermost and the
