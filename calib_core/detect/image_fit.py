@@ -214,6 +214,12 @@ def refine_candidate(image: np.ndarray, cam: CameraModel, cand: Candidate, spher
     _judge(cam, res, R, outside_bad, sig.diff is not None)
     if res.ok and fit1.reading == "several" and not _several_held(sig, res, R, outside_bad):
         res.ok, res.credible, res.reason = False, False, "no round outline"
+    if _rescued(fit1) and not (res.ok and res.credible):
+        # a rescued start is searched for (like the several reading): it must grow into a
+        # credible outline (mostly seen, round, the surroundings just outside it); if not, it
+        # counts as no start (the caller looks again near a candidate that found no outline,
+        # as it did before the rescue)
+        return CandidateFit(False, "no round outline")
     return res
 
 
