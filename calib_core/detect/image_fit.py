@@ -196,9 +196,22 @@ def refine_candidate(image: np.ndarray, cam: CameraModel, cand: Candidate, spher
     if box[2] - box[0] < 8 or box[3] - box[1] < 8:
         return CandidateFit(False, "no round outline")
     sig = _Signal(image, background, box)
-    fit1 = _first_pass(cam, sig, cand, R, band, a_range_rad, rng)
-    if not isinstance(fit1, ConeFit):
-        return CandidateFit(False, fit1)
+    starts = _first_pass(cam, sig, cand, R, band, a_range_rad, rng)
+    if isinstance(starts, str):
+        return CandidateFit(False, starts)
+    for fit1 in starts:
+        res = _grown(cam, sig, fit1, R, a_range_rad, rng, sphere_radius_m)
+        # a rescued start is searched for (like the several reading): it must grow into a
+        # credible outline (mostly seen, round, the surroundings just outside it); if not, the
+        # next start is tried, and without one it counts as no start (the caller then looks
+        # again near a candidate that found no outline, as it did before the rescue)
+        if not _rescued(fit1) or (res.ok and res.credible):
+            return res
+    return CandidateFit(False, "no round outline")
+
+
+def _grown(cam, sig: _Signal, fit1: ConeFit, R: float, a_range_rad, rng, sphere_radius_m: float) -> CandidateFit:
+    """Pass 2 from one pass-1 start, judged."""
     # ---- pass 2: along the normals of the fitted silhouette, narrow band (twice when the
     # first pass-2 fit is still rough: clutter drew pass 1 off the outline)
     if fit1.reading in ("several",) + RESCUE_READINGS:
@@ -214,12 +227,6 @@ def refine_candidate(image: np.ndarray, cam: CameraModel, cand: Candidate, spher
     _judge(cam, res, R, outside_bad, sig.diff is not None)
     if res.ok and fit1.reading == "several" and not _several_held(sig, res, R, outside_bad):
         res.ok, res.credible, res.reason = False, False, "no round outline"
-    if _rescued(fit1) and not (res.ok and res.credible):
-        # a rescued start is searched for (like the several reading): it must grow into a
-        # credible outline (mostly seen, round, the surroundings just outside it); if not, it
-        # counts as no start (the caller looks again near a candidate that found no outline,
-        # as it did before the rescue)
-        return CandidateFit(False, "no round outline")
     return res
 
 
@@ -249,9 +256,11 @@ def _several_held(sig: _Signal, res: CandidateFit, R: float, outside_bad: float)
             _inside_colour_arcs(sig, res.silhouette_px, R)) >= SEVERAL_MIN_INSIDE_AGREEMENT
 
 
-def _first_pass(cam, sig: _Signal, cand: Candidate, R: float, band, a_range_rad, rng) -> ConeFit | str:
+def _first_pass(cam, sig: _Signal, cand: Candidate, R: float, band, a_range_rad, rng) -> list[ConeFit] | str:
     """Pass 1: rays from the coarse centre, outermost strong edge (or, without a background,
-    the strongest colour edge when that is rounder). The fit, or why there is none."""
+    the strongest colour edge when that is rounder). The starts for pass 2, in the order to
+    try them (more than one only with a rescued start, :data:`RESCUE_READINGS`), or why
+    there is none."""
     k1 = int(np.clip(2 * np.pi * cand.radius_px / 2.5, 48, 180))
     dirs = ray_directions(k1)
     r_dir = _polar_radius(cand, dirs)
@@ -269,7 +278,7 @@ def _first_pass(cam, sig: _Signal, cand: Candidate, R: float, band, a_range_rad,
     if seg_in.sum() < 12:
         return "no outline edges"
     fit1 = _pass1(cam, pts, dirs, t, g, seg_in, "outermost", a_range_rad, R, rng)
-    readings = [fit1]
+    readings, arc, smoothed = [fit1], None, None
     good1 = fit1 is not None and fit1.inliers.sum() >= 0.75 * seg_in.sum() and fit1.sigma_px <= 1.0
     if cand.source != "background" and not good1:
         # without a background, clutter just outside the outline also makes edges: the
@@ -280,18 +289,19 @@ def _first_pass(cam, sig: _Signal, cand: Candidate, R: float, band, a_range_rad,
         if alt is not None and (fit1 is None or _quality(alt) > _quality(fit1)):
             fit1 = alt
         if not _pass1_usable(fit1, seg_in, R) and sig.diff is None:
-            fit1 = _pass1_arc(cam, sig, readings, seg_in, R) or fit1
-        if not (_pass1_usable(fit1, seg_in, R) or _rescued(fit1)):
+            # (a clean arc is tried first: a start from single edges is firmer than a circle
+            # picked among several per ray; the usable reading after it is the fallback)
+            arc = _pass1_arc(cam, sig, readings, seg_in, R)
+        if not _pass1_usable(fit1, seg_in, R):
             alt = _pass1_several(cam, sig, pts, dirs, step, R, seg_in, a_range_rad)
             if alt is not None and (fit1 is None or _quality(alt) > _quality(fit1)):
                 fit1 = alt
-        if not (_pass1_usable(fit1, seg_in, R) or _rescued(fit1)) and sig.diff is None:
-            fit1 = _pass1_smoothed(cam, sig, (pts, dirs, t, step, seg_in), a_range_rad, R) or fit1
-    if not (_pass1_usable(fit1, seg_in, R) or _rescued(fit1)):
-        # too little of the rays on it, or so ragged that the refinement, which narrows the
-        # band around this outline, cannot make it round (saves the cost of pass 2 on clutter)
-        return "no round outline"
-    return fit1
+        if not _pass1_usable(fit1, seg_in, R) and sig.diff is None:
+            smoothed = _pass1_smoothed(cam, sig, (pts, dirs, t, step, seg_in), a_range_rad, R)
+    # too little of the rays on a reading, or so ragged that the refinement, which narrows the
+    # band around its outline, cannot make it round: no start (saves pass 2 on clutter)
+    starts = [f for f in (arc, fit1 if _pass1_usable(fit1, seg_in, R) else None, smoothed) if f is not None]
+    return starts or "no round outline"
 
 
 def _pass1_usable(fit1: ConeFit | None, seg_in: np.ndarray, R: float) -> bool:
