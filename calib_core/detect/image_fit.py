@@ -537,10 +537,19 @@ HUE_STEP_LAG = 2
 
 def _inside_hues(sig: _Signal, sil: np.ndarray, R: float) -> np.ndarray:
     """(K,3) unit RGB directions just inside the outline (shading scales a colour, does not turn it)."""
-    gap = max(3.0, 0.04 * R)
-    c_in = sample_profiles(sig.img, sig.origin, sil, outward_normals(sil, sil.mean(axis=0)),
-                           -gap - np.arange(3.0)).mean(axis=1) + 1.0
+    c_in, _ = _colours_across(sig, sil, R)
+    c_in = c_in + 1.0
     return c_in / np.linalg.norm(c_in, axis=1, keepdims=True)
+
+
+def _colours_across(sig: _Signal, sil: np.ndarray, R: float) -> tuple[np.ndarray, np.ndarray]:
+    """(K,3) mean colours just inside and just outside the outline (3 samples each, a gap of
+    max(3 px, 4 % of the radius) from it: the edge's own blur left out)."""
+    gap = max(3.0, 0.04 * R)
+    nrm = outward_normals(sil, sil.mean(axis=0))
+    c_in = sample_profiles(sig.img, sig.origin, sil, nrm, -gap - np.arange(3.0)).mean(axis=1)
+    c_out = sample_profiles(sig.img, sig.origin, sil, nrm, gap + np.arange(3.0)).mean(axis=1)
+    return c_in, c_out
 
 
 def _within(d: np.ndarray) -> int:
@@ -557,25 +566,66 @@ def _inside_colour_agreement(sig: _Signal, sil: np.ndarray, R: float) -> float:
     return _within(d) / len(d)
 
 
-def _inside_colour_arcs(sig: _Signal, sil: np.ndarray, R: float) -> float:
-    """Share of the outline in long arcs of one hue each: a painted ball (beach-ball gores,
-    panels) changes hue only where a panel's boundary meets the outline, a few times around it;
-    a circle run through texture or several objects changes it often. The outline is split
-    where the hue turns by more than HUE_TOLERANCE_RAD over HUE_STEP_LAG points; arcs of at
-    least SEVERAL_MIN_ARC_SHARE of it count with their points within tolerance of their own
-    median hue."""
-    d = _inside_hues(sig, sil, R)
+def _hue_arcs(d: np.ndarray) -> list[np.ndarray]:
+    """Index arrays (into the outline's K points) of the arcs of one hue at least
+    SEVERAL_MIN_ARC_SHARE of the outline long: the outline split where the hue ``d`` (K,3 unit
+    directions) turns by more than HUE_TOLERANCE_RAD over HUE_STEP_LAG points."""
     k = len(d)
     turn = np.arccos(np.clip((d * np.roll(d, -HUE_STEP_LAG, axis=0)).sum(axis=1), -1.0, 1.0)) > HUE_TOLERANCE_RAD
     if not turn.any():
-        return _within(d) / k
+        return [np.arange(k)]
     start = int(np.flatnonzero(turn)[0])
     steady = np.roll(~turn, -start)  # (begins on a turn: no arc wraps around the end)
     edges = np.flatnonzero(np.diff(np.r_[0, steady.astype(np.int8), 0]))
-    d = np.roll(d, -start, axis=0)
-    good = sum(_within(d[a:b]) for a, b in zip(edges[::2], edges[1::2])
-               if b - a >= max(4, SEVERAL_MIN_ARC_SHARE * k))
-    return good / k
+    return [(start + np.arange(a, b)) % k for a, b in zip(edges[::2], edges[1::2])
+            if b - a >= max(4, SEVERAL_MIN_ARC_SHARE * k)]
+
+
+# a colour step across the outline: at least half of an arc's points must step by more than
+# the colour noise alone gives at a 5 % false-alarm rate per point. The noise of one in-out
+# difference is measured locally, on the arc itself: the differences between points of one
+# side the same distance apart along the arc as the inside and outside samples are across it.
+# Taken as Gaussian along one colour direction (texture is mostly luminance; the conservative
+# case): the two-sided 5 % point is 1.96 sigma, the median of |difference| 0.6745 sigma. An
+# arc passes by chance only if half of its points do: for the ~n/lag >= 4 independent ones of
+# the shortest arc, P(Binomial(4, 0.05) >= 2) = 1.4 %, far less for longer arcs.
+STEP_FALSE_ALARM_Z = 1.96
+MEDIAN_ABS_NORMAL = 0.6745
+
+
+def _arc_has_step(c_in: np.ndarray, c_out: np.ndarray, lag: int) -> bool:
+    """Whether an arc's inside and outside colours (n,3 each, in order along the arc) differ
+    by a real step: the median in-out distance beyond the 5 % point of the same-side
+    differences ``lag`` points apart (the noise and texture of each side, at the in-out
+    separation). A circle cut through one textured surface (brick, boards) has about the same
+    colours on both sides; a ball's painted gore against its surroundings does not."""
+    lag = int(np.clip(lag, 1, max(1, len(c_in) // 3)))
+    same = np.r_[np.linalg.norm(c_in[lag:] - c_in[:-lag], axis=1),
+                 np.linalg.norm(c_out[lag:] - c_out[:-lag], axis=1)]
+    step = float(np.median(np.linalg.norm(c_in - c_out, axis=1)))
+    return step > STEP_FALSE_ALARM_Z / MEDIAN_ABS_NORMAL * float(np.median(same))
+
+
+def _step_lag(sil: np.ndarray, R: float) -> int:
+    """Points along the outline as far apart as the inside and outside samples of
+    :func:`_colours_across` are across it."""
+    spacing = float(np.mean(np.linalg.norm(np.diff(sil, axis=0), axis=1)))
+    return max(1, int(round(2.0 * (max(3.0, 0.04 * R) + 1.0) / max(spacing, 1e-6))))
+
+
+def _inside_colour_arcs(sig: _Signal, sil: np.ndarray, R: float) -> float:
+    """Share of the outline in long arcs of one hue each: a painted ball (beach-ball gores,
+    panels) changes hue only where a panel's boundary meets the outline, a few times around it;
+    a circle run through texture or several objects changes it often. Arcs (:func:`_hue_arcs`)
+    count with their points within tolerance of their own median hue, and only where the
+    colour steps across the outline (:func:`_arc_has_step`): a circle straddling two
+    textured surfaces (brick above, boards below) has two long arcs of one hue, but each lies
+    on one surface, whose colour goes on outside it."""
+    c_in, c_out = _colours_across(sig, sil, R)
+    d = (c_in + 1.0) / np.linalg.norm(c_in + 1.0, axis=1, keepdims=True)
+    lag = _step_lag(sil, R)
+    good = sum(_within(d[ix]) for ix in _hue_arcs(d) if _arc_has_step(c_in[ix], c_out[ix], lag))
+    return good / len(d)
 
 
 def _outside_mismatch(sig: _Signal, sil: np.ndarray, nrm: np.ndarray, R: float) -> float:
