@@ -81,3 +81,14 @@ def test_gored_ball_on_textured_surfaces_keeps_its_arcs():
     img[inside] = ball[inside]
     sig = _Signal(img, None, (0, 0, 200, 200))
     assert _inside_colour_arcs(sig, _outline(60.0), 60.0) >= SEVERAL_MIN_INSIDE_AGREEMENT
+
+
+@pytest.mark.parametrize("seed, was_px", [(1017, 3.1), (1022, 26.0)])
+def test_beach_ball_outline_not_pulled_to_a_gore_boundary(seed, was_px):
+    """Panels s1017: pass 1 a few px off on one side, where a gore boundary just inside the limb
+    is the outermost and strongest edge of the narrow band and the limb lies just beyond it;
+    s1022: a circle round the highlight across a gore boundary won over the limb. The pass-2
+    reading from several edges per normal in a wider band finds the limb (it was 3.1 / 26 px off)."""
+    case = render_case("panels", seed, 0.5)
+    det = detect_sphere_in_image(case.image, case.cam, case.radius_m)
+    assert det.found and np.hypot(*(det.center_uv_px - case.true_uv_px)) < 1.0, (was_px, det.center_uv_px)

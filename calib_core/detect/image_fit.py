@@ -5,6 +5,9 @@ Pass 1 casts rays from the coarse centre and takes the outermost strong edge of 
 silhouette is the outermost). Pass 2 samples along the normals of the fitted silhouette, in a
 narrow band, and keeps the outermost edge there (the outline's envelope); the cone is refitted
 robustly, so the chain (a thin line attached at the top) and texture edges end up as outliers.
+When that envelope is not clean, pass 2 is also read from the few strongest edges of every
+normal in a wider band (the cone most of them agree on): a gore boundary just inside a beach
+ball's limb is the outermost edge only over a stretch, the limb is round all the way.
 """
 
 from __future__ import annotations
@@ -373,6 +376,10 @@ def _pass2(cam, sig, fit1: ConeFit, R: float, a_range_rad, rng):
     geo = (sil, sil_xy, nrm, k2, perim)
     half = max(3.0, 3.0 * fit1.sigma_px + 1.5, 0.02 * R)
     best = _pass2_reading(cam, sig, fit1, R, a_range_rad, rng, geo, half, 0.0)
+    if best is None or best[0].sigma_px > 0.5 * clean_rms_px(R) or best[0].inliers.mean() < 0.9:
+        alt = _pass2_several(cam, sig, fit1, R, a_range_rad, geo, max(half, PASS2_SEVERAL_HALF_FRAC * R))
+        if alt is not None and _searched_held(alt, R) and (best is None or _quality(alt[0]) > _quality(best[0])):
+            best = alt
     for s in BLUR_SCALES_PX:
         if best is not None and best[0].sigma_px <= outline_rms_limit_px(R, _median_width(best)):
             break
@@ -382,6 +389,57 @@ def _pass2(cam, sig, fit1: ConeFit, R: float, a_range_rad, rng):
         if alt is not None and _smoothed_held(alt, R) and (best is None or _quality(alt[0]) > _quality(best[0])):
             best = alt
     return best
+
+
+# the several-edges reading of pass 2 looks this far (x the coarse radius) either side of the
+# pass-1 outline: 3 x pass 1's inlier band (0.04 R), plus room for the peak's neighbours
+PASS2_SEVERAL_HALF_FRAC = 0.15
+
+
+def _pass2_several(cam, sig: _Signal, fit1: ConeFit, R: float, a_range_rad, geo, half: float):
+    """Pass 2 read from the few strongest edges of every normal in a wider band, the outline
+    being the cone most of them agree on, then one edge per normal (the nearest to it): where
+    pass 1 is a few px off on one side and a strong edge just inside the ball, nearly parallel
+    to its limb (a beach ball's gore boundary, a seam), is the outermost and strongest edge in
+    the narrow band there, the ball's own outline lying just beyond it. A gore boundary runs
+    along the limb over a stretch only; the limb is round all the way. Same return as
+    :func:`_pass2_reading` (fit, used mask, strengths, K, edge widths); its own random stream."""
+    sil, sil_xy, nrm, k2, perim = geo
+    t2 = np.arange(-half, half + 0.25, 0.5)
+    inside_img = cam.in_image(sil, margin_px=1.0) & sig.covers(sil, half + 1.0)
+    g2 = gradient_magnitude(sig.colour_profiles(sil, nrm, t2), 0.5)
+    if not inside_img.any():
+        return None
+    thr = max(0.3 * float(np.median(g2.max(axis=1)[inside_img])), EDGE_NOISE_FACTOR * sig.noise)
+    te = edge_peaks(t2, g2, thr, SEVERAL_PEAKS)
+    ray = np.broadcast_to(np.arange(k2)[:, None], te.shape)
+    ok = np.isfinite(te) & inside_img[:, None]
+    ray, te = ray[ok], te[ok]
+    if len(np.unique(ray)) < 12:
+        return None
+    xy = normalize_near(cam, sil[ray] + te[:, None] * nrm[ray], sil_xy[ray], iterations=3)
+    band = max(1.0, 0.01 * R)
+    rng = np.random.default_rng(k2)
+    fit = fit_cone(cam, xy, a_range_rad, inlier_px=band, rng=rng, max_iter=6, n_hyp=SEVERAL_HYPOTHESES)
+    if fit is None:
+        return None
+    order = np.lexsort((np.abs(fit.residuals_px), ray))
+    first = order[np.r_[True, ray[order][1:] != ray[order][:-1]]]
+    one = np.full(k2, np.nan)
+    one[ray[first]] = te[first]
+    ok2 = np.isfinite(one)
+    fit = _pass2_fit(cam, xy[first], fit, R, a_range_rad, rng, k2, perim)
+    if fit is None:
+        return None
+    fit.reading = "several"
+    _, s2 = pick_edges(t2, g2, "nearest", thr, np.where(ok2, one, 0.0))
+    return fit, ok2, s2, k2, edge_widths(t2, g2, one)[ok2]
+
+
+def _searched_held(p2, R: float) -> bool:
+    """A pass-2 outline searched for among several edges per normal, held like the smoothed
+    reading (:func:`_smoothed_held`) to the tight refit's standard."""
+    return _smoothed_held(p2, R)
 
 
 def _smoothed_held(p2, R: float) -> bool:
