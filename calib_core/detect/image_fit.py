@@ -228,22 +228,32 @@ def _several_held(sig: _Signal, res: CandidateFit, R: float, outside_bad: float)
     refined: TIGHT_MIN_SUPPORT, TIGHT_RMS_FRACTION of the clean limit), the credible outside
     limit (0.2) unless it is the very clean, mostly visible outline _judge lets stand in
     clutter, and without a background one hue inside all along the outline."""
-    fit = res.fit
+    return _outline_held(sig, res.fit, res.support, res.extras.get("edge_width_px", np.nan),
+                         res.silhouette_px, R, outside_bad)
+
+
+def _outline_held(sig: _Signal, fit: ConeFit, support: float, width_px: float, sil: np.ndarray,
+                  R: float, outside_bad: float, need_step: bool = False) -> bool:
+    """The standard of :func:`_several_held` on a fit's parts: its share of the outline, its
+    edges' median width (px), its outline (K,2 px) and that outline's outside mismatch. With
+    ``need_step`` the inside's hue must also step across the outline on every arc counted
+    (:func:`_inside_colour_arcs` only; one hue all along is one arc)."""
     # (the tight standard relative to the roundness limit of the outline's edge width: a
     # blurred edge's midpoint scatters more than a sharp one's)
-    limit = outline_rms_limit_px(R, res.extras.get("edge_width_px", np.nan))
-    if res.support < TIGHT_MIN_SUPPORT or fit.sigma_px > TIGHT_RMS_FRACTION * limit:
+    limit = outline_rms_limit_px(R, width_px)
+    if support < TIGHT_MIN_SUPPORT or fit.sigma_px > TIGHT_RMS_FRACTION * limit:
         return False
-    very_clean = res.support >= 0.7 and fit.sigma_px <= 0.35 * clean_rms_px(R)
+    very_clean = support >= 0.7 and fit.sigma_px <= 0.35 * clean_rms_px(R)
     if outside_bad > 0.2 and not very_clean:
         return False
     # a circle picked from several edges per ray can run through unrelated things (a block's
     # corner, mortar lines): a sphere's inside has one hue all along its outline (shading
     # changes only the brightness)
     # (a painted ball: one hue per arc, between the few places where a gore meets the outline)
-    return sig.diff is not None or \
-        max(_inside_colour_agreement(sig, res.silhouette_px, R),
-            _inside_colour_arcs(sig, res.silhouette_px, R)) >= SEVERAL_MIN_INSIDE_AGREEMENT
+    if sig.diff is not None:
+        return True
+    arcs = _inside_colour_arcs(sig, sil, R)
+    return (arcs if need_step else max(arcs, _inside_colour_agreement(sig, sil, R))) >= SEVERAL_MIN_INSIDE_AGREEMENT
 
 
 def _first_pass(cam, sig: _Signal, cand: Candidate, R: float, band, a_range_rad, rng) -> ConeFit | str:
@@ -378,7 +388,7 @@ def _pass2(cam, sig, fit1: ConeFit, R: float, a_range_rad, rng):
     best = _pass2_reading(cam, sig, fit1, R, a_range_rad, rng, geo, half, 0.0)
     if best is None or best[0].sigma_px > 0.5 * clean_rms_px(R) or best[0].inliers.mean() < 0.9:
         alt = _pass2_several(cam, sig, fit1, R, a_range_rad, geo, max(half, PASS2_SEVERAL_HALF_FRAC * R))
-        if alt is not None and _searched_held(alt, R) and (best is None or _quality(alt[0]) > _quality(best[0])):
+        if alt is not None and _searched_held(cam, sig, alt, R) and (best is None or _quality(alt[0]) > _quality(best[0])):
             best = alt
     for s in BLUR_SCALES_PX:
         if best is not None and best[0].sigma_px <= outline_rms_limit_px(R, _median_width(best)):
@@ -436,10 +446,25 @@ def _pass2_several(cam, sig: _Signal, fit1: ConeFit, R: float, a_range_rad, geo,
     return fit, ok2, s2, k2, edge_widths(t2, g2, one)[ok2]
 
 
-def _searched_held(p2, R: float) -> bool:
-    """A pass-2 outline searched for among several edges per normal, held like the smoothed
-    reading (:func:`_smoothed_held`) to the tight refit's standard."""
-    return _smoothed_held(p2, R)
+def _searched_held(cam, sig: _Signal, p2, R: float) -> bool:
+    """A pass-2 outline searched for among several edges per normal, held like the several
+    reading of pass 1 (:func:`_outline_held`: the tight refit's standard, the outside looks
+    like the surroundings, one hue inside per long arc with a colour step across the outline
+    on each) and its edge width a smear's at most
+    (as :func:`_smoothed_held`)."""
+    fit, _, _, k2, _ = p2
+    width = _median_width(p2)
+    if not width <= BLUR_MAX_RADIUS_FRACTION * R:
+        return False
+    sil = silhouette_uv(cam, fit.w, fit.a_rad, n=k2)
+    visible = cam.in_image(sil, margin_px=0.05 * R + 8)
+    if visible.sum() < 8 or not np.isfinite(sil).all():
+        return False
+    outside_bad = _outside_mismatch(sig, sil[visible], outward_normals(sil, sil.mean(axis=0))[visible], R)
+    # (a colour step across the outline all round: this reading looks farther from pass 1's
+    # outline, among more edges, than any other; a small round patch in a block's corner had
+    # one hue inside but the same colours outside)
+    return _outline_held(sig, fit, float(fit.inliers.sum()) / k2, width, sil, R, outside_bad, need_step=True)
 
 
 def _smoothed_held(p2, R: float) -> bool:
