@@ -14,9 +14,9 @@ attenuated by ``exp(-c t)`` and veiled by the water's own radiance ``B(direction
 ``B``: bright towards the surface and the sun side (backlit), or dark (``dark_water``).
 Then Gaussian blur (optics), Poisson-like + read noise, 8-bit quantisation (JPEG is
 applied by the writer). By default: no shadows, no caustics, no lens vignetting, Lambertian
-balls. An optional :class:`~calib_core.synth.photo.Photo` adds a key light with cast and
+balls. An optional :class:`~calib_core.synth.photo.effects.Photo` adds a key light with cast and
 contact shadows, a glossy highlight with bloom, ball markings, vignetting and exposure / white
-balance shifts (model in :mod:`calib_core.synth.photo`; without one the output is unchanged).
+balance shifts (model in :mod:`calib_core.synth.photo.effects`; without one the output is unchanged).
 """
 
 from __future__ import annotations
@@ -28,7 +28,7 @@ import cv2
 import numpy as np
 
 from calib_core.camera import CameraModel
-from calib_core.synth import photo as ph
+from calib_core.synth.photo import effects as ph
 from calib_core.synth.scene import Scene, Sphere, raycast
 from calib_core.synth.textures import texture_factor
 
@@ -136,7 +136,7 @@ def _shade(scene: Scene, water: Water, o_world, d_world, max_range_m, photo: ph.
 
 
 def _shade_photo(scene, water, photo, hit, p, n, d, alb):
-    """Object radiance under :class:`~calib_core.synth.photo.Photo` lighting (markings first,
+    """Object radiance under :class:`~calib_core.synth.photo.effects.Photo` lighting (markings first,
     then textures multiply them)."""
     balls = [i for i in scene.ids_with_tag("target") if isinstance(scene.primitives[i], Sphere)]
     is_ball = np.isin(hit, balls)

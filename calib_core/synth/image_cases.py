@@ -12,7 +12,7 @@ Each case is one rendered camera image of a scene kind (no sonar, no session fil
   edges of things touching the sphere run next to its outline (real data set A);
 - "glossy", "panels", "motion": photographic effects (highlight and bloom, cast and contact
   shadows, markings, vignetting, exposure and white balance, motion blur) on a gym ball on a
-  chair or the floor, a beach ball, a carried foam ball: see :mod:`calib_core.synth.photo_cases`.
+  chair or the floor, a beach ball, a carried foam ball: see :mod:`calib_core.synth.photo.cases`.
 
 ``render_case(kind, seed, scale)`` returns the image, the camera, the sphere radius, the true
 projection of the sphere centre (raw px), the visible fraction of the outline and, where the
@@ -27,7 +27,9 @@ import numpy as np
 
 from calib_core.camera import CameraModel
 from calib_core.geometry import invert_T, transform_points
-from calib_core.synth import photo_cases, range_scenes, room, world
+from calib_core.synth import room, world
+from calib_core.synth.photo import cases as photo_cases
+from calib_core.synth.range import scenes as range_scenes
 from calib_core.synth.camera_render import RenderOptions, Water, finish_image, render_radiance
 from calib_core.synth.rig import sample_rig, sample_target_center, silhouette_uv
 from calib_core.synth.scene import Scene

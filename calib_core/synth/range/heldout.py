@@ -33,7 +33,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from calib_core.io.clouds import Cloud
-from calib_core.synth.range_sim import _cast
+from calib_core.synth.range.sim import _cast
 from calib_core.synth.scene import Scene, raycast
 
 

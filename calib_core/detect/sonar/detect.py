@@ -36,7 +36,7 @@ and hides part of every other one behind it (a ball held out in front of its car
 :func:`_in_front`); a sphere of another
 size is reported, not used. Every refusal says why, in words an operator can act on.
 The effective beam width (down to 0) is estimated per session with
-:func:`calib_core.detect.sonar_beam.estimate_beam_width_deg`.
+:func:`calib_core.detect.sonar.beam.estimate_beam_width_deg`.
 
 Approximations: circular uniform beam cone (no beam pattern, side lobes or multipath). The
 covariance is the fit's (range noise) plus an isotropic model-error floor of
@@ -52,15 +52,15 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from calib_core.detect.sonar_fit import FitResult, angle_to_axis_rad, cone_residuals, fit_sphere
-from calib_core.detect.sonar_outline import (
+from calib_core.detect.sonar.fit import FitResult, angle_to_axis_rad, cone_residuals, fit_sphere
+from calib_core.detect.sonar.outline import (
     attached_sectors,
     attached_span,
     free_outline_mask,
     longest_attached_arc,
     roughness_m,
 )
-from calib_core.detect.sonar_search import (
+from calib_core.detect.sonar.search import (
     Candidate,
     disc_coverage,
     find_candidates,
@@ -68,7 +68,7 @@ from calib_core.detect.sonar_search import (
     noise_at,
     start_center,
 )
-from calib_core.detect.sonar_streams import lowest_hashes
+from calib_core.detect.sonar.streams import lowest_hashes
 from calib_core.detect.types import SonarDetection
 
 METHODS = ("cone-model", "known-radius", "free-radius")
@@ -587,7 +587,7 @@ def _free_leader(nominal: list[_Judged], W: np.ndarray, r: float, h: float) -> s
 
 def _attached(W: np.ndarray, j: _Judged, r: float, h: float) -> np.ndarray:
     """The sectors around a judged candidate's outline that something continues
-    (:func:`calib_core.detect.sonar_outline.attached_sectors`, on the returns it was judged on)."""
+    (:func:`calib_core.detect.sonar.outline.attached_sectors`, on the returns it was judged on)."""
     X = W[j.idx[j.idx_j]]
     R = np.linalg.norm(X, axis=1)
     c = j.fit.center_m
@@ -599,7 +599,7 @@ def _attached(W: np.ndarray, j: _Judged, r: float, h: float) -> np.ndarray:
 
 def _centres(judged: list[_Judged]) -> list[list[float]]:
     """Candidates' fitted centres (m, sonar frame) as an entry records them (for the
-    session-level choice, :mod:`calib_core.disambiguate_sonar`)."""
+    session-level choice, :mod:`calib_core.disambiguate.sonar`)."""
     return [[round(float(v), 4) for v in j.fit.center_m] for j in judged]
 
 

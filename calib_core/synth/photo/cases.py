@@ -1,5 +1,5 @@
 """Scenes of the photographic image cases (glossy gym ball, beach ball, carried ball with
-motion blur), rendered with the effects of :mod:`calib_core.synth.photo`.
+motion blur), rendered with the effects of :mod:`calib_core.synth.photo.effects`.
 
 - "glossy": a gym ball (grey most often; also dark, white or coloured; sometimes a seam, a
   printed logo, a valve), glossy (Blinn-Phong highlight clipped at 255 with a bloom), resting on
@@ -11,7 +11,7 @@ motion blur), rendered with the effects of :mod:`calib_core.synth.photo`.
   motion during the exposure (real set B).
 
 Each function returns the linear radiance (ball or not), the ball centre and radius, the
-:class:`~calib_core.synth.photo.Photo` for the finishing step, and a label. ``with_ball``
+:class:`~calib_core.synth.photo.effects.Photo` for the finishing step, and a label. ``with_ball``
 False renders the same scene (same random draws) without the ball, its holder and its shadow.
 """
 
@@ -21,10 +21,11 @@ from dataclasses import replace
 
 import numpy as np
 
-from calib_core.synth import range_scenes, room
+from calib_core.synth import room
+from calib_core.synth.range import scenes as range_scenes
 from calib_core.synth.camera_render import render_radiance
 from calib_core.synth.occlusion import occluded_fraction
-from calib_core.synth.photo import BallLook, Photo, motion_composite
+from calib_core.synth.photo.effects import BallLook, Photo, motion_composite
 from calib_core.synth.rig import sample_target_center
 from calib_core.synth.scene import Scene
 

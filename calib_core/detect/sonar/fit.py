@@ -2,7 +2,7 @@
 
 Everything is in the sonar frame, metres, with the beams starting at the frame origin.
 
-The cone model (derived in the module docs of :mod:`calib_core.detect.sonar`): a beam with
+The cone model (derived in the module docs of :mod:`calib_core.detect.sonar.detect`): a beam with
 centre-line direction ``d`` and half-angle ``h`` reports the first sphere return inside its
 cone, placed along ``d``. With ``theta`` the angle between ``d`` and the sphere centre
 direction and ``phi = max(theta - h, 0)`` the smallest angle inside the cone, the reported

@@ -1,6 +1,6 @@
 """Photographic looks of the session presets "gym" and "carried-photo" (``Preset.photo``).
 
-The session generator renders these presets with :mod:`calib_core.synth.photo` switched on:
+The session generator renders these presets with :mod:`calib_core.synth.photo.effects` switched on:
 
 - per session (:func:`session_look`, stream ``[seed, 7919, 4242]``): the ball's surface (a
   glossy gym ball of varying shade with a seam / logo / valve as the "glossy" image case
@@ -26,8 +26,8 @@ import numpy as np
 
 from calib_core.synth import room
 from calib_core.synth.camera_render import render_radiance
-from calib_core.synth.photo import BallLook, Photo, motion_composite
-from calib_core.synth.photo_cases import draw_photo, gym_look, key_dir, metered, rand_dir
+from calib_core.synth.photo.effects import BallLook, Photo, motion_composite
+from calib_core.synth.photo.cases import draw_photo, gym_look, key_dir, metered, rand_dir
 from calib_core.synth.scene import Material, Scene, Sphere
 
 KINDS = ("gym", "carried")

@@ -24,7 +24,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from calib_core.detect.image_region import (Candidate, _box_sum, _counts, disc_boxes, downscale, non_maximum,
+from calib_core.detect.image.region import (Candidate, _box_sum, _counts, disc_boxes, downscale, non_maximum,
                                            radius_ladder)
 
 NOISE_VAR = 25.0  # (Lab units)^2: a spread under ~5 units is image noise, not texture

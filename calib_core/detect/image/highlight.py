@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from calib_core.detect.image_region import Candidate
+from calib_core.detect.image.region import Candidate
 
 CLIPPED_DN = 250  # 8-bit code counted as clipped (JPEG and noise keep a clipped area below 255)
 CLIPPED_SHARE = 0.6  # share of the disc's inside that is clipped for a highlight

@@ -19,11 +19,11 @@ import numpy as np
 from scipy.ndimage import gaussian_filter1d
 
 from calib_core.camera import CameraModel
-from calib_core.detect.image_cone import (ConeFit, centre_uv_and_cov, fit_cone, normalize_near,
+from calib_core.detect.image.cone import (ConeFit, centre_uv_and_cov, fit_cone, normalize_near,
                                           silhouette_uv, silhouette_xy)
-from calib_core.detect.image_edges import (edge_peaks, edge_widths, gradient_magnitude, outward_normals,
+from calib_core.detect.image.edges import (edge_peaks, edge_widths, gradient_magnitude, outward_normals,
                                            pick_edges, ray_directions, sample_profiles, smooth_roi)
-from calib_core.detect.image_region import Candidate
+from calib_core.detect.image.region import Candidate
 
 SMOOTH_SIGMA_PX = 1.0
 # Neighbouring pass-2 edge samples are ~EDGE_SPACING_PX apart while the smoothing and the optics

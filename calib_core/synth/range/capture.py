@@ -13,10 +13,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from calib_core.synth import range_scenes
-from calib_core.synth.range_heldout import (
+from calib_core.synth.range import scenes as range_scenes
+from calib_core.synth.range.heldout import (
     Lidar128Config, LivoxConfig, StereoConfig, simulate_lidar128, simulate_livox, simulate_stereo)
-from calib_core.synth.range_sim import LidarConfig, RgbdConfig, simulate_lidar, simulate_rgbd
+from calib_core.synth.range.sim import LidarConfig, RgbdConfig, simulate_lidar, simulate_rgbd
 from calib_core.synth.scene import Scene
 from calib_core.synth.sonar_sim import SonarConfig, simulate_scan
 

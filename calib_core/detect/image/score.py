@@ -111,7 +111,7 @@ def probability(x: np.ndarray, fallback: float, platt: tuple[float, float] | Non
 def entry_logit(entry: dict) -> float | None:
     """The logistic's log-odds (before any calibration) of a detections.yaml image entry of the
     free search, from the outline features it records; None when it records none."""
-    from calib_core.detect.image_fit import clean_rms_px
+    from calib_core.detect.image.fit import clean_rms_px
 
     r = entry.get("radius_px")
     if not isinstance(r, (int, float)) or "outline_coverage" not in entry:

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from calib_core.detect.image_fit import SYS_FRACTION
+from calib_core.detect.image.fit import SYS_FRACTION
 
 
 def outline_range_floor_m(range_m: float, radius_px: float, edge_rms_px: float) -> float:

@@ -1,6 +1,6 @@
 """Effective beam width of the range sensor, estimated from all sphere scans of a session.
 
-The cone model (:mod:`calib_core.detect.sonar_fit`) needs the beam's half-angle. The nominal
+The cone model (:mod:`calib_core.detect.sonar.fit`) needs the beam's half-angle. The nominal
 width (BV5000: 1 deg) is where the beam pattern drops by 3 dB; what matters for blooming is
 the angle out to which a strong target is still detected, which depends on the target's
 strength and the detection threshold. And the "sonar" may be a LiDAR or an RGB-D camera with
@@ -19,10 +19,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from calib_core.detect.sonar import detect_sphere_in_cloud
-from calib_core.detect.sonar_fit import cone_residuals, fit_sphere
-from calib_core.detect.sonar_outline import free_outline_mask
-from calib_core.detect.sonar_search import crop_ball
+from calib_core.detect.sonar.detect import detect_sphere_in_cloud
+from calib_core.detect.sonar.fit import cone_residuals, fit_sphere
+from calib_core.detect.sonar.outline import free_outline_mask
+from calib_core.detect.sonar.search import crop_ball
 
 MIN_CAPTURES = 3
 MAX_CAPTURES = 12  # spheres used (spread over the session): enough to pin one shared width

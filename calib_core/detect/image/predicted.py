@@ -1,6 +1,6 @@
 """A look for the sphere where another sensor predicts it: centre and apparent size known roughly.
 
-When the session's rough rig registration (:mod:`calib_core.disambiguate`) says where the sphere
+When the session's rough rig registration (:mod:`calib_core.disambiguate.image`) says where the sphere
 must be in an image and how large it must look, a half-visible, low-contrast outline (a ball the
 shade of the chair behind it, its top fading into the wall) is enough: the size is no longer a
 free parameter, so a short arc fixes the centre. Steps:
@@ -29,15 +29,20 @@ registration before keeping it; this module only looks.
 
 from __future__ import annotations
 
+from dataclasses import dataclass, replace
+
 import numpy as np
+from scipy.ndimage import gaussian_filter1d
 
 from calib_core.camera import CameraModel
-from calib_core.detect.image_cone import (ConeFit, centre_uv_and_cov, normalize_near, orthonormal_basis,
+from calib_core.detect.image.blur import blur_floor_px2, blur_range_floor_m, is_blurred
+from calib_core.detect.image.cone import (ConeFit, centre_uv_and_cov, normalize_near, orthonormal_basis,
                                           px_per_rad, rays_from_xy, silhouette_uv, silhouette_xy)
-from calib_core.detect.image import CUT, NO_OUTLINE, prepare_background
-from calib_core.detect.image_range import cone_range_sigma_m, outline_range_floor_m
-from calib_core.detect.image_edges import gradient_magnitude, outward_normals
-from calib_core.detect.image_fit import (CORR_LENGTH_PX, EDGE_NOISE_FACTOR, EDGE_SPACING_PX, SYS_FRACTION, _Signal,
+from calib_core.detect.image.detect import CUT, NO_OUTLINE, prepare_background
+from calib_core.detect.image.apparent_range import cone_range_sigma_m, outline_range_floor_m
+from calib_core.detect.image.edges import edge_widths, gradient_magnitude, outward_normals
+from calib_core.detect.image.fit import (BLUR_MAX_RADIUS_FRACTION, BLUR_SCALES_PX, CORR_LENGTH_PX, EDGE_NOISE_FACTOR,
+                                         EDGE_SPACING_PX, SMALL_RADIUS_PX, SMOOTH_SIGMA_PX, SYS_FRACTION, _Signal,
                                          clean_rms_px)
 from calib_core.detect.reasons import OUTLINE_SEEN_KEY, RANGE_PRIOR_KEY
 from calib_core.detect.types import ImageDetection
@@ -64,17 +69,23 @@ def predicted_cone(cam: CameraModel, uv_px, radius_px: float) -> tuple[np.ndarra
     return w / np.linalg.norm(w), float(np.arcsin(min(radius_px / cam.fx, 0.99)))
 
 
-def edge_points(cam: CameraModel, sig: _Signal, w: np.ndarray, a: float, band_px: float):
-    """All gradient peaks above the noise along the normals of the predicted outline:
-    (points (N,2) raw px, normal index (N,), number of normals K, gradient strengths (N,))."""
+def edge_points(cam: CameraModel, sig: _Signal, w: np.ndarray, a: float, band_px: float, smooth_px: float = 0.0):
+    """All gradient peaks above the noise along the normals of the predicted outline, on profiles
+    smoothed along the normals by ``smooth_px`` (Gaussian sigma; 0: as sampled): (points (N,2)
+    raw px, normal index (N,), number of normals K, gradient strengths (N,), edge widths (N,):
+    FWHM of each peak, px, the smoothing's share taken out in quadrature)."""
     R = cam.fx * np.tan(a)
     k = int(np.clip(2 * np.pi * R / 2.0, 64, 360))
     sil = cam.distort(silhouette_xy(w, a, k))
     nrm = outward_normals(sil, sil.mean(axis=0))
     t = np.arange(-band_px, band_px + 0.25, 0.5)
     inside = cam.in_image(sil + band_px * nrm, margin_px=1.0) & cam.in_image(sil - band_px * nrm, margin_px=1.0)
-    g = gradient_magnitude(sig.colour_profiles(sil, nrm, t), 0.5)
-    thr = EDGE_NOISE_FACTOR * sig.noise
+    prof = sig.colour_profiles(sil, nrm, t)
+    if smooth_px > 0:
+        prof = gaussian_filter1d(prof, smooth_px / 0.5, axis=1, mode="nearest")
+    g = gradient_magnitude(prof, 0.5)
+    # the region's noise smoothed alike (per px of gradient, white noise falls as s^1.5; as pass 2)
+    thr = EDGE_NOISE_FACTOR * sig.noise * min(1.0, (SMOOTH_SIGMA_PX / np.hypot(SMOOTH_SIGMA_PX, smooth_px)) ** 1.5)
     peak = np.zeros_like(g, dtype=bool)
     peak[:, 1:-1] = (g[:, 1:-1] >= g[:, :-2]) & (g[:, 1:-1] > g[:, 2:]) & (g[:, 1:-1] >= thr)
     peak &= inside[:, None]
@@ -84,7 +95,8 @@ def edge_points(cam: CameraModel, sig: _Signal, w: np.ndarray, a: float, band_px
     den = g0 - 2 * g1 + g2
     off = np.where(np.abs(den) > 1e-12, 0.5 * (g0 - g2) / np.where(np.abs(den) > 1e-12, den, 1.0), 0.0)
     tt = t[mi] + 0.5 * np.clip(off, -0.5, 0.5)
-    return sil[ki] + tt[:, None] * nrm[ki], ki, int(inside.sum()), g1
+    widths = np.sqrt(np.maximum(edge_widths(t, g[ki], tt) ** 2 - (2.3548 * smooth_px) ** 2, 0.0))
+    return sil[ki] + tt[:, None] * nrm[ki], ki, int(inside.sum()), g1, widths
 
 
 def best_circle(pts: np.ndarray, centre0: np.ndarray, r: float, max_shift: float,
@@ -173,6 +185,71 @@ def _not_found(reason: str, **extras) -> ImageDetection:
     return ImageDetection(found=False, score=None, reason=reason, method="ellipse-exact", extras=extras)
 
 
+@dataclass
+class _Reading:
+    """One reading of the edges around the prediction and the cone fitted to it."""
+
+    fit: ConeFit
+    support: float  # share of the K normals on the fitted outline
+    k: int
+    q: np.ndarray  # the edge points in the plane tangent to the predicted axis (px)
+    normal_of: np.ndarray
+    basis: tuple  # (e1, e2) of that plane
+    edge_width_px: float  # median FWHM of the outline's edges (smoothing taken out)
+    smooth_px: float
+
+
+def _read(cam, sig: _Signal, w0, a0: float, band: float, max_shift_q: float, seed: int,
+          smooth_px: float) -> _Reading | None:
+    """Edges along the predicted outline's normals (smoothed by ``smooth_px``), the circle of the
+    predicted size through most of them, and the cone fitted with the size prior; None when no
+    such circle or fit."""
+    pts, normal_of, k, _, widths = edge_points(cam, sig, w0, a0, band, smooth_px)
+    # in the plane tangent to the predicted axis the outline is a circle of radius fx tan(a)
+    # (in raw pixels an off-axis sphere is an ellipse, stretched by the lens)
+    xy_all = normalize_near(cam, pts)
+    q, e1, e2 = _tangent_plane(cam, xy_all, w0)
+    Rq = cam.fx * np.tan(a0)
+    circ = best_circle(q, np.zeros(2), Rq, max_shift_q, np.random.default_rng(seed))
+    if circ is None or circ[1] < 0.15 * k:
+        return None
+    keep = _nearest_per_normal(q, normal_of, circ[0], Rq)
+    w1 = w0 + (circ[0][0] * e1 + circ[0][1] * e2) / cam.fx
+    fit = fit_cone_with_prior(cam, xy_all[keep], w1 / np.linalg.norm(w1), a0,
+                              corr_points=CORR_LENGTH_PX / EDGE_SPACING_PX)
+    if fit is None:
+        return None
+    width = float(np.median(widths[keep][fit.inliers])) if fit.inliers.any() else float("nan")
+    return _Reading(fit, float(fit.inliers.sum()) / max(k, 1), k, q, normal_of, (e1, e2), width, smooth_px)
+
+
+def _smoothed(cam, sig: _Signal, w0, a0: float, band: float, max_shift_q: float, seed: int, R: float,
+              raw: _Reading) -> _Reading:
+    """The reading of a blurred outline at the smear's middle, or ``raw`` for a sharp one.
+
+    A motion-smeared edge is a ramp whose gradient is a low plateau studded with the sharp edges
+    of the still scene seen through it: with the size fixed, a circle through the studs can sit
+    anywhere across the plateau, and the studs' own narrow peaks hide the blur from the raw
+    reading's edge widths. On profiles smoothed along the normals (fit.BLUR_SCALES_PX, as
+    pass 2 reads a smear) the gradient peaks at the ramp's middle, where the outline is, and the
+    edge width (the smoothing taken out) measures the smear. Blurred when the first smoothed
+    reading's edges are wider than a sharp photograph's; then the smoothest reading that still
+    lies on MIN_SUPPORT of the outline is kept (none: the raw one). Its edge width, for the floor,
+    is the widest the readings measured (taking the smoothing out in quadrature undershoots when
+    the smoothing is as wide as the smear)."""
+    best, widths = raw, [raw.edge_width_px]
+    for s in BLUR_SCALES_PX:
+        if 2.3548 * s > BLUR_MAX_RADIUS_FRACTION * R:
+            break  # (no smoothing wider than a quarter radius: as fit's pass 2)
+        alt = _read(cam, sig, w0, a0, band, max_shift_q, seed, s)
+        if alt is None or not (len(widths) > 1 or is_blurred(alt.edge_width_px)):
+            break
+        widths.append(alt.edge_width_px)
+        if alt.support >= MIN_SUPPORT and alt.fit.sigma_px <= clean_rms_px(R):
+            best = alt
+    return raw if len(widths) == 1 else replace(best, edge_width_px=float(np.nanmax(widths)))
+
+
 def detect_at_prediction(image: np.ndarray, cam: CameraModel, sphere_radius_m: float, uv_px, radius_px: float,
                          background: np.ndarray | None = None, shift_frac: float = 0.3,
                          seed: int = 0) -> ImageDetection:
@@ -191,24 +268,14 @@ def detect_at_prediction(image: np.ndarray, cam: CameraModel, sphere_radius_m: f
     if box[2] - box[0] < 8 or box[3] - box[1] < 8:
         return _not_found(nothing)
     sig = _Signal(image, None if background is None else prepare_background(background).image, box)
-    pts, normal_of, k, _ = edge_points(cam, sig, w0, a0, band)
-    # in the plane tangent to the predicted axis the outline is a circle of radius fx tan(a)
-    # (in raw pixels an off-axis sphere is an ellipse, stretched by the lens)
-    xy_all = normalize_near(cam, pts)
-    q, e1, e2 = _tangent_plane(cam, xy_all, w0)
-    Rq = cam.fx * np.tan(a0)
-    circ = best_circle(q, np.zeros(2), Rq, shift * Rq / R, np.random.default_rng(seed))
-    if circ is None or circ[1] < 0.15 * k:
+    look = (cam, sig, w0, a0, band, shift * cam.fx * np.tan(a0) / R, seed)
+    reading = _read(*look, 0.0)
+    if reading is None:
         return _not_found(nothing, looked_at=[round(float(x), 1) for x in uv_px])
-    keep = _nearest_per_normal(q, normal_of, circ[0], Rq)
-    xy = xy_all[keep]
-    w1 = w0 + (circ[0][0] * e1 + circ[0][1] * e2) / cam.fx
-    fit = fit_cone_with_prior(cam, xy, w1 / np.linalg.norm(w1), a0, corr_points=CORR_LENGTH_PX / EDGE_SPACING_PX)
-    if fit is None:
-        return _not_found(nothing)
-    support = float(fit.inliers.sum()) / max(k, 1)
-    det = _verdict(cam, fit, support, k, R, sphere_radius_m, uv_px)
-    null = _null_support(cam, q, normal_of, k, fit, w0, e1, e2)
+    if R >= SMALL_RADIUS_PX:  # (no smear on a small blob: as fit.outline_rms_limit_px)
+        reading = _smoothed(*look, R, reading)
+    det = _verdict(cam, reading, R, sphere_radius_m, uv_px)
+    null = _null_support(cam, reading.q, reading.normal_of, reading.k, reading.fit, w0, *reading.basis)
     det.extras["null_support"] = round(null[1], 4)
     if det.found and null[0] - null[1] < NULL_MARGIN:
         return _not_found(f"no outline standing out from the texture {WHERE}", **det.extras)
@@ -228,13 +295,14 @@ def _null_support(cam, q, normal_of, k: int, fit: ConeFit, w0, e1, e2) -> tuple[
     return own, max(len(_nearest_per_normal(q, normal_of, m, Rq)) / max(k, 1) for m in moved)
 
 
-def _verdict(cam, fit: ConeFit, support: float, k: int, R: float, sphere_radius_m: float,
-             uv_px) -> ImageDetection:
+def _verdict(cam, reading: _Reading, R: float, sphere_radius_m: float, uv_px) -> ImageDetection:
     """Found when enough of the outline lies on a round, clean fit; else why not."""
+    fit, support, k = reading.fit, reading.support, reading.k
     centre, cov = centre_uv_and_cov(cam, fit)
     sil = silhouette_uv(cam, fit.w, fit.a_rad, n=k)
     where = f"at ({centre[0]:.0f}, {centre[1]:.0f})"
     extras = {"support": round(support, 4), "edge_rms_px": round(float(fit.sigma_px), 4),
+              "edge_width_px": round(reading.edge_width_px, 3), "edge_smoothing_px": reading.smooth_px,
               "prediction_uv_px": [round(float(x), 2) for x in uv_px], "prediction_radius_px": round(R, 2)}
     if not cam.in_image(sil, margin_px=1.0).all():
         return _not_found(CUT_HERE, **extras)
@@ -242,10 +310,13 @@ def _verdict(cam, fit: ConeFit, support: float, k: int, R: float, sphere_radius_
         return _not_found(f"outline not round (edge RMS {fit.sigma_px:.1f} px) {WHERE} {where}", **extras)
     if support < MIN_SUPPORT:
         return _not_found(f"outline {100 * (1 - support):.0f} % hidden or too faint {WHERE} {where}", **extras)
-    cov = cov + (SYS_FRACTION * fit.sigma_px) ** 2 * np.eye(2)
     r_px = float(np.mean(np.linalg.norm(sil - sil.mean(axis=0), axis=1)))
-    rng_sigma = float(np.hypot(cone_range_sigma_m(sphere_radius_m, fit.a_rad, fit.cov_params[2, 2]),
-                               outline_range_floor_m(sphere_radius_m / np.sin(fit.a_rad), r_px, float(fit.sigma_px))))
+    # a blurred outline's plateau: the free search's systematic floor (image.blur), same rule
+    cov = cov + ((SYS_FRACTION * fit.sigma_px) ** 2 + blur_floor_px2(r_px, reading.edge_width_px)) * np.eye(2)
+    range_m = float(sphere_radius_m / np.sin(fit.a_rad))
+    rng_sigma = float(np.linalg.norm([cone_range_sigma_m(sphere_radius_m, fit.a_rad, fit.cov_params[2, 2]),
+                                      blur_range_floor_m(range_m, r_px, reading.edge_width_px),
+                                      outline_range_floor_m(range_m, r_px, float(fit.sigma_px))]))
     extras.update(range_sigma_m=round(rng_sigma, 5), angular_radius_deg=round(float(np.degrees(fit.a_rad)), 5),
                   outline_coverage=round(support, 3))
     # no probability (score None): the share of the outline seen, discounted by its spread (as the
@@ -254,5 +325,4 @@ def _verdict(cam, fit: ConeFit, support: float, k: int, R: float, sphere_radius_
                    RANGE_PRIOR_KEY: PRIOR_REL_SIGMA})
     return ImageDetection(found=True, center_uv_px=centre, cov_uv_px2=cov, score=None,
                           ellipse_px=((float(centre[0]), float(centre[1])), (2 * r_px, 2 * r_px), 0.0),
-                          radius_px=r_px, range_m=float(sphere_radius_m / np.sin(fit.a_rad)),
-                          method="ellipse-exact", extras=extras)
+                          radius_px=r_px, range_m=range_m, method="ellipse-exact", extras=extras)

@@ -29,15 +29,15 @@ import cv2
 import numpy as np
 
 from calib_core.camera import CameraModel
-from calib_core.detect.image_fit import CandidateFit, refine_candidate
-from calib_core.detect.image_fit import TIGHT_MIN_SUPPORT, clean_rms_px, outline_rms_limit_px
-from calib_core.detect.image_discs import candidates_by_discs
-from calib_core.detect.image_highlight import host_candidates, is_clipped_spot
-from calib_core.detect.image_hough import hough_circle
-from calib_core.detect.image_range import cone_range_sigma_m, outline_range_floor_m
-from calib_core.detect.image_score import features, probability
-from calib_core.detect.image_votes import candidates_by_votes
-from calib_core.detect.image_region import (Candidate, candidates_from_background,
+from calib_core.detect.image.fit import CandidateFit, refine_candidate
+from calib_core.detect.image.fit import TIGHT_MIN_SUPPORT, clean_rms_px, outline_rms_limit_px
+from calib_core.detect.image.discs import candidates_by_discs
+from calib_core.detect.image.highlight import host_candidates, is_clipped_spot
+from calib_core.detect.image.hough import hough_circle
+from calib_core.detect.image.apparent_range import cone_range_sigma_m, outline_range_floor_m
+from calib_core.detect.image.score import features, probability
+from calib_core.detect.image.votes import candidates_by_votes
+from calib_core.detect.image.region import (Candidate, candidates_from_background,
                                             candidates_single_frame, choose_scale, downscale,
                                             radius_bounds_px)
 from calib_core.detect.types import ImageDetection

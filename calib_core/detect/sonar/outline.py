@@ -8,7 +8,7 @@ sort 16 sectors around the outline into "attached" and "free", so that
 - the detector can tell a ball resting on something (a short arc) from the cap of a larger
   surface (continued all round: a boulder, a dome), and
 - the beam-width estimate can leave the holder's returns out: under a wide cone they pass for
-  blooming, and inflate the width (:mod:`calib_core.detect.sonar_beam`).
+  blooming, and inflate the width (:mod:`calib_core.detect.sonar.beam`).
 """
 
 from __future__ import annotations
@@ -16,8 +16,8 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial import cKDTree
 
-from calib_core.detect.sonar_fit import robust_sigma
-from calib_core.detect.sonar_search import polar_about
+from calib_core.detect.sonar.fit import robust_sigma
+from calib_core.detect.sonar.search import polar_about
 
 N_SECTORS = 16
 

@@ -28,7 +28,11 @@ def add_parser(sub) -> None:
     p.add_argument("--camera-topic", action="append", metavar="[NAME=]TOPIC",
                    help="image topic of a camera (repeat for several; default: every image topic)")
     p.add_argument("--intrinsics", action="append", metavar="[NAME=]FILE", default=[],
-                   help="intrinsics file for a camera instead of its CameraInfo (needed for a video)")
+                   help="intrinsics file for a camera instead of its CameraInfo (needed for a video): ROS "
+                        "camera_info YAML, OpenCV FileStorage or a Kalibr camchain")
+    p.add_argument("--intrinsics-entry", action="append", metavar="[NAME=]ENTRY", default=[],
+                   help="which entry of a Kalibr camchain given with --intrinsics is this camera (e.g. cam0); "
+                        "as session.yaml's intrinsics_entry")
     p.add_argument("--split", default="auto", choices=["auto", "gap", "message"],
                    help="how the sonar stream is cut into scans (default auto)")
     p.add_argument("--gap-seconds", type=float, help="a pause longer than this ends a scan")
@@ -87,6 +91,14 @@ def _options(args):
     for item in args.intrinsics:
         name, _, path = item.rpartition("=")
         intr[name or args.camera] = Path(path)
+    entries = {}
+    for item in args.intrinsics_entry:
+        name, _, entry = item.rpartition("=")
+        name = name or args.camera
+        if name not in intr or not entry:
+            raise SessionError(None, f"--intrinsics-entry {item!r}: give it as NAME=ENTRY for a camera "
+                                     f"that has --intrinsics NAME=FILE")
+        entries[name] = entry
     window = None
     if args.background:
         try:
@@ -101,7 +113,7 @@ def _options(args):
         if v is not None and not v > 0:
             raise SessionError(None, f"--{flag.replace('_', '-')} must be positive")
     return ImportOptions(diameter_m=args.diameter, sonar_topic=args.sonar_topic, camera_topics=args.camera_topic,
-                         intrinsics=intr, split=args.split, gap_seconds=args.gap_seconds,
+                         intrinsics=intr, intrinsics_entry=entries, split=args.split, gap_seconds=args.gap_seconds,
                          scan_seconds=args.scan_seconds, background_window_s=window, tolerance_px=args.tolerance_px,
                          tolerance_m=args.tolerance_m, drop_moved=args.drop_moved, median=args.median, name=args.name,
                          sonar_model=args.sonar_model)

@@ -18,7 +18,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from calib_core.detect.image_region import Candidate, downscale, non_maximum, radius_ladder
+from calib_core.detect.image.region import Candidate, downscale, non_maximum, radius_ladder
 
 LEVEL_RADIUS_PX = (4.0, 8.0)
 RADIUS_STEP = 1.2

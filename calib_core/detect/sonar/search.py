@@ -5,7 +5,7 @@ thinning to about ``max_points`` points (by the points' own hashes), voxel downs
 removal of large planes (seabed, walls, dock faces) by RANSAC, connected-component
 clustering, then a vectorised RANSAC sphere search inside each cluster and a first
 plausibility screen (size, support, purity). The survivors are judged again at full
-resolution by :mod:`calib_core.detect.sonar`.
+resolution by :mod:`calib_core.detect.sonar.detect`.
 """
 
 from __future__ import annotations
@@ -18,8 +18,8 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
-from calib_core.detect.sonar_fit import algebraic_sphere, robust_sigma
-from calib_core.detect.sonar_streams import content_rng, thin_hashed
+from calib_core.detect.sonar.fit import algebraic_sphere, robust_sigma
+from calib_core.detect.sonar.streams import content_rng, thin_hashed
 
 
 @dataclass
@@ -489,7 +489,7 @@ def prescreen(points_m: np.ndarray, cands: list[Candidate], r: float, half_angle
     and centimetres for boxes, pontoons and rocks cut by the seabed. Kept: spread below
     max(0.1 r, 2 x the plane noise, 2 x the best candidate's).
     """
-    from calib_core.detect.sonar_fit import angle_to_axis_rad, cone_residuals
+    from calib_core.detect.sonar.fit import angle_to_axis_rad, cone_residuals
 
     for k in cands:
         best = np.inf

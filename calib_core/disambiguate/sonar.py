@@ -10,7 +10,7 @@ buoy, a pipe end). The session can, with two cues, tried in this order:
    is scenery; when every candidate but one is scenery and that one is seen in few other
    captures, it is the target.
 2. The images: the captures whose sonar and image detections are unambiguous give a rough
-   rig registration (:func:`calib_core.disambiguate.resolve_candidates`, a 3D-3D RANSAC on
+   rig registration (:func:`calib_core.disambiguate.image.resolve_candidates`, a 3D-3D RANSAC on
    the image centres read with the known radius). The candidate that lands on the capture's
    image detection (within the loose gate used there), while the others clearly do not, is
    the target.
@@ -32,7 +32,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from calib_core.camera import CameraModel
-from calib_core.disambiguate import candidate_points_cam_m, resolve_candidates
+from calib_core.disambiguate.image import candidate_points_cam_m, resolve_candidates
 
 # A candidate seen in at least this share of the other captures (and in 2) is scenery: a
 # scenery object of the target's size is not recorded in every cloud (it loses to the target
@@ -125,7 +125,7 @@ def rig_registration(cam: CameraModel, detections: dict, cam_name: str) -> np.nd
 def choose_by_image(candidates_sonar_m: np.ndarray, cam: CameraModel, T_cam_sonar: np.ndarray,
                     image_entry: dict | None) -> int | None:
     """Index of the only candidate that lands on the image detection (within the gate of
-    :mod:`calib_core.disambiguate`, the others beyond twice it), else None."""
+    :mod:`calib_core.disambiguate.image`, the others beyond twice it), else None."""
     if T_cam_sonar is None or not _usable(image_entry) or image_entry.get("center") is None \
             or not image_entry.get("range_m"):
         return None

@@ -18,7 +18,7 @@ import cv2
 import numpy as np
 
 from app.common import client_tag, guarded, notify, pose_wxyz_position
-from app.scene3d import camera_pose
+from app.panels.scene3d import camera_pose
 from calib_core import fusion
 from calib_core.pipeline import CLICK_SIGMA_IMAGE_PX, refit_image
 
