@@ -41,3 +41,10 @@ def test_a_football_missed_without_the_cue_is_found_with_it(monkeypatch):
     monkeypatch.setattr(im, "enclosing_candidates", lambda *a, **k: [])
     off = im.detect_sphere_in_image(case.image, case.cam, case.radius_m)
     assert not off.found
+
+
+def test_a_weak_outline_around_a_cluster_is_no_detection():
+    # ball-free held-out scene where the cluster's circle gave a round outline of fit quality
+    # under WEAK_FIT (score 0.00): the guess counts only when its outline is clear
+    case = render_case("motion", 1000, 0.5, with_ball=False)
+    assert not im.detect_sphere_in_image(case.image, case.cam, case.radius_m).found

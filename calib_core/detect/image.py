@@ -377,9 +377,11 @@ def _more_cues(look, cands, fits):
     fits = fits + _refine_all(look, more[:DISC_CANDIDATES], False)  # best first, border or not
     if _clear(fits):
         return cands, fits
-    # fourth cue: a ball's print (pentagons, panels) made the small candidates: a cluster of them
+    # fourth cue: a ball's print (pentagons, panels) made the small candidates: a cluster of them.
+    # A guess built from other candidates: it counts only when it gives a clear outline
     more = _new_candidates(fits, enclosing_candidates(cands, look.r_bounds))
-    return cands + more, fits + _refine_all(look, more, False)
+    fourth = _refine_all(look, more, False)
+    return (cands + more, fits + fourth) if _clear(fourth) else (cands, fits)
 
 
 class _Look:
