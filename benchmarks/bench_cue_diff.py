@@ -4,7 +4,7 @@ Runs the detector on cached synthetic cases (``bench_image_presets.py --cache``)
 on; where the cue proposed candidates, runs it again with the cue off and lists every image
 whose result changed (found, error to the truth, score, reason). Prints, per kind, recall,
 false detections and ball-free finds with the cue off and on. Cues: "pattern" (the fourth
-cue, :mod:`calib_core.detect.image_pattern`).
+cue, :mod:`calib_core.detect.image.pattern`).
 
 Run: .venv/bin/python benchmarks/bench_cue_diff.py --kinds sports,outdoor --seeds 40 --cache DIR [--negatives]
 """
@@ -21,7 +21,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 import benchmarks.bench_image_presets as bip  # noqa: E402
-from calib_core.detect import image as im  # noqa: E402
+from calib_core.detect.image import detect as im  # noqa: E402
 
 REAL = im.enclosing_candidates
 CALLED = []

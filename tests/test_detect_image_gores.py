@@ -9,8 +9,8 @@ cap or a part of the ball taken instead. The inside colour may now be one hue pe
 import numpy as np
 import pytest
 
-from calib_core.detect.image import detect_sphere_in_image
-from calib_core.detect.image_fit import (SEVERAL_MIN_INSIDE_AGREEMENT, _inside_colour_agreement,
+from calib_core.detect.image.detect import detect_sphere_in_image
+from calib_core.detect.image.fit import (SEVERAL_MIN_INSIDE_AGREEMENT, _inside_colour_agreement,
                                          _inside_colour_arcs, _Signal)
 from calib_core.synth.image_cases import render_case
 

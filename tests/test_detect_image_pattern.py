@@ -5,9 +5,9 @@ finds the ball's outline there (calib_core.detect.image_pattern)."""
 import numpy as np
 import pytest
 
-from calib_core.detect import image as im
-from calib_core.detect.image_pattern import enclosing_candidates
-from calib_core.detect.image_region import Candidate
+from calib_core.detect.image import detect as im
+from calib_core.detect.image.pattern import enclosing_candidates
+from calib_core.detect.image.region import Candidate
 from calib_core.synth.image_cases import render_case
 
 

@@ -8,12 +8,12 @@ Each kind renders deterministically by seed with its truth; each effect is where
 import numpy as np
 import pytest
 
-from calib_core.synth import ball_patterns as bp
-from calib_core.synth import camera_artefacts as ca
-from calib_core.synth import photo_water as pw
+from calib_core.synth.photo import artefacts as ca
+from calib_core.synth.photo import ball_patterns as bp
+from calib_core.synth.photo import water as pw
 from calib_core.synth.camera_render import Water
 from calib_core.synth.image_cases import render_case
-from calib_core.synth.photo import Photo
+from calib_core.synth.photo.effects import Photo
 from calib_core.synth.textures import texture_factor
 
 SCALE = 0.2

@@ -14,9 +14,9 @@ attenuated by ``exp(-c t)`` and veiled by the water's own radiance ``B(direction
 ``B``: bright towards the surface and the sun side (backlit), or dark (``dark_water``).
 Then Gaussian blur (optics), Poisson-like + read noise, 8-bit quantisation (JPEG is
 applied by the writer). By default: no shadows, no caustics, no lens vignetting, Lambertian
-balls. An optional :class:`~calib_core.synth.photo.Photo` adds a key light with cast and
+balls. An optional :class:`~calib_core.synth.photo.effects.Photo` adds a key light with cast and
 contact shadows, a glossy highlight with bloom, ball markings, vignetting and exposure / white
-balance shifts (model in :mod:`calib_core.synth.photo`; without one the output is unchanged).
+balance shifts (model in :mod:`calib_core.synth.photo.effects`; without one the output is unchanged).
 """
 
 from __future__ import annotations
@@ -28,8 +28,9 @@ import cv2
 import numpy as np
 
 from calib_core.camera import CameraModel
-from calib_core.synth import camera_artefacts, photo_water
-from calib_core.synth import photo as ph
+from calib_core.synth.photo import artefacts as camera_artefacts
+from calib_core.synth.photo import effects as ph
+from calib_core.synth.photo import water as photo_water
 from calib_core.synth.scene import Scene, Sphere, raycast
 from calib_core.synth.textures import texture_factor
 
@@ -54,7 +55,7 @@ class Water:
     ambient: float = 0.35
     diffuse: float = 0.65
     attenuation_rgb: tuple | None = None  # per-channel c (1/m), replaces attenuation_per_m
-    spot_veil: float = 0.0  # a dive light's glow in the water (see calib_core.synth.photo_water)
+    spot_veil: float = 0.0  # a dive light's glow in the water (see calib_core.synth.photo.water)
     spot_dir: tuple = (1.0, 0.0, 0.0)
     spot_power: float = 10.0
 
@@ -146,7 +147,7 @@ def _shade(scene: Scene, water: Water, o_world, d_world, max_range_m, photo: ph.
 
 
 def _shade_photo(scene, water, photo, hit, p, n, d, alb):
-    """Object radiance under :class:`~calib_core.synth.photo.Photo` lighting (markings first,
+    """Object radiance under :class:`~calib_core.synth.photo.effects.Photo` lighting (markings first,
     then textures multiply them)."""
     balls = [i for i in scene.ids_with_tag("target") if isinstance(scene.primitives[i], Sphere)]
     is_ball = np.isin(hit, balls)

@@ -12,11 +12,11 @@ Each case is one rendered camera image of a scene kind (no sonar, no session fil
   edges of things touching the sphere run next to its outline (real data set A);
 - "glossy", "panels", "motion": photographic effects (highlight and bloom, cast and contact
   shadows, markings, vignetting, exposure and white balance, motion blur) on a gym ball on a
-  chair or the floor, a beach ball, a carried foam ball: see :mod:`calib_core.synth.photo_cases`;
+  chair or the floor, a beach ball, a carried foam ball: see :mod:`calib_core.synth.photo.cases`;
 - "sports", "outdoor", "underwater": held-out kinds (patterned sports balls; hard sun, sky and
   ground textures; colour attenuation, backscatter, caustics, a dive light and marine snow),
   with camera artefacts (JPEG, high gain, defocus, shake) on a share: see
-  :mod:`calib_core.synth.heldout_cases`.
+  :mod:`calib_core.synth.photo.heldout`.
 
 ``render_case(kind, seed, scale)`` returns the image, the camera, the sphere radius, the true
 projection of the sphere centre (raw px), the visible fraction of the outline and, where the
@@ -31,7 +31,10 @@ import numpy as np
 
 from calib_core.camera import CameraModel
 from calib_core.geometry import invert_T, transform_points
-from calib_core.synth import heldout_cases, photo_cases, range_scenes, room, world
+from calib_core.synth import room, world
+from calib_core.synth.photo import cases as photo_cases
+from calib_core.synth.range import scenes as range_scenes
+from calib_core.synth.photo import heldout as heldout_cases
 from calib_core.synth.camera_render import RenderOptions, Water, finish_image, render_radiance
 from calib_core.synth.rig import sample_rig, sample_target_center, silhouette_uv
 from calib_core.synth.scene import Scene
