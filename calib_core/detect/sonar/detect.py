@@ -43,7 +43,11 @@ covariance is the fit's (range noise) plus an isotropic model-error floor of
 ``MODEL_FLOOR_BEAM_FRACTION`` of the beam footprint (range x beam width), set so that the centre
 errors on synthetic sessions have a mean squared Mahalanobis distance of ~1 per axis (it was ~7
 without the floor: `benchmarks/bench_detection_sonar.py`). Real beams will need more, which the
-solver's chi-square inflation then supplies.
+solver's chi-square inflation then supplies. The fit's covariance does not let returns grazing the
+limb pin the centre (:func:`calib_core.detect.sonar.fit._cov_jacobian`), and the final cone fit is
+averaged with the one without a footprint, weighed by the capture's own returns
+(:func:`calib_core.detect.sonar.cov.footprint_averaged`): a footprint the session's width scan
+read but the ball does not show no longer biases the centre (`benchmarks/bench_range_cov.py`).
 """
 
 from __future__ import annotations
@@ -52,6 +56,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from calib_core.detect.sonar.cov import footprint_averaged
 from calib_core.detect.sonar.fit import FitResult, angle_to_axis_rad, cone_residuals, fit_sphere
 from calib_core.detect.sonar.outline import (
     attached_sectors,
@@ -679,6 +684,7 @@ def _final_fits(X, j: _Judged, r, h, method, noise_m: float = float("nan")):
             return None
     if method == "cone-model":
         cone = _away_from_holder(X, cone, j.radius_fit_m, h, noise_m, other_size)
+        cone = footprint_averaged(X, cone, h, other_size)
     apparent = fit_sphere(Xj, cone.center_m, r, model="euclid", free_radius=True,
                           sigma0_m=max(cone.sigma_m, 2e-3))
     if method == "cone-model":
