@@ -102,15 +102,15 @@ class Workbench:
         self.tab_plan = tabs.add_tab("Plan")
 
     def _build_panels(self) -> None:
-        from app.flags import Diagnoser, FlagsPanel
-        from app.fused import FusedPanel
-        from app.images import ImagePanels
-        from app.motion_panel import MotionPanel
-        from app.plan_panel import PlanPanel
-        from app.review import ReviewPanel
-        from app.scene3d import Scene3D
-        from app.session_panel import SessionPanel
-        from app.solve_panel import SolvePanel
+        from app.panels.flags import Diagnoser, FlagsPanel
+        from app.panels.fused import FusedPanel
+        from app.panels.images import ImagePanels
+        from app.panels.motion import MotionPanel
+        from app.panels.plan import PlanPanel
+        from app.panels.review import ReviewPanel
+        from app.panels.scene3d import Scene3D
+        from app.panels.session import SessionPanel
+        from app.panels.solve import SolvePanel
 
         self.scene3d = Scene3D(self)
         self.images = ImagePanels(self)

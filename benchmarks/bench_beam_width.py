@@ -3,7 +3,7 @@
     .venv/bin/python benchmarks/bench_beam_width.py SESSION [SESSION ...]
 
 For each session (e.g. the canal / seabed / LiDAR / RGB-D presets of calib_core.synth), the
-captures' crops (calib_core.detect.sonar_beam.beam_crop) are computed once, then the width is
+captures' crops (calib_core.detect.sonar.beam.beam_crop) are computed once, then the width is
 estimated by the default coarse-to-fine search with warm-started fits and by the full grid of
 factors with cold fits (the estimator before issue 12's second round). Prints both widths,
 their difference and the scan times (crops excluded), with the load average.
@@ -19,7 +19,7 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from calib_core import pipeline  # noqa: E402
-from calib_core.detect.sonar_beam import estimate_from_crops  # noqa: E402
+from calib_core.detect.sonar.beam import estimate_from_crops  # noqa: E402
 from calib_core.session import load_session  # noqa: E402
 
 

@@ -22,7 +22,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 import benchmarks.bench_image_presets as presets  # noqa: E402
-from calib_core.detect.image import detect_sphere_in_image  # noqa: E402
+from calib_core.detect.image.detect import detect_sphere_in_image  # noqa: E402
 
 BINS = ((0, 5), (5, 10), (10, 16))
 

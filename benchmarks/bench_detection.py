@@ -31,7 +31,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from calib_core.camera import CameraModel  # noqa: E402
-from calib_core.detect.image import background_model, detect_sphere_in_image, prepare_background  # noqa: E402
+from calib_core.detect.image.detect import background_model, detect_sphere_in_image, prepare_background  # noqa: E402
 from calib_core.geometry import invert_T, transform_points  # noqa: E402
 from calib_core.synth import world  # noqa: E402
 from calib_core.synth.camera_render import RenderOptions, finish_image, render_radiance  # noqa: E402

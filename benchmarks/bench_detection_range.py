@@ -7,7 +7,7 @@ Two tables:
    LiDAR and RGB-D presets), then every capture is searched with it. Recall, centre error
    against ground truth (bias = norm of the mean error vector; along = mean error along the
    line of sight, + = too far), the widths estimated, and the reasons for misses.
-2. Single captures (calib_core.synth.range_capture: no cameras, so many seeds are cheap) of
+2. Single captures (calib_core.synth.range.capture: no cameras, so many seeds are cheap) of
    every sensor x holder pair, searched with the width estimated from 8 other captures of the
    pair (as a session would).
 
@@ -39,13 +39,13 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from calib_core.detect.sonar import detect_sphere_in_cloud  # noqa: E402
-from calib_core.detect.sonar_beam import estimate_beam_width_deg  # noqa: E402
+from calib_core.detect.sonar.detect import detect_sphere_in_cloud  # noqa: E402
+from calib_core.detect.sonar.beam import estimate_beam_width_deg  # noqa: E402
 from calib_core.io.clouds import load_cloud  # noqa: E402
 from calib_core.session import load_session  # noqa: E402
 from calib_core.synth.generate import generate_session  # noqa: E402
 from calib_core.synth.ground_truth import load_ground_truth  # noqa: E402
-from calib_core.synth.range_capture import range_capture  # noqa: E402
+from calib_core.synth.range.capture import range_capture  # noqa: E402
 
 PRESETS = ("lidar-chair", "rgbd-stick", "rgbd-table", "seabed-slab", "carried")
 SWEEP_PRESETS = ("lidar-chair", "rgbd-stick", "rgbd-table", "seabed-slab", "clutter", "seabed", "carried")

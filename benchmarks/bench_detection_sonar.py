@@ -28,8 +28,8 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from calib_core.detect.sonar import detect_sphere_in_cloud  # noqa: E402
-from calib_core.detect.sonar_beam import estimate_beam_width_deg  # noqa: E402
+from calib_core.detect.sonar.detect import detect_sphere_in_cloud  # noqa: E402
+from calib_core.detect.sonar.beam import estimate_beam_width_deg  # noqa: E402
 from calib_core.io.clouds import load_cloud  # noqa: E402
 from calib_core.session import load_session  # noqa: E402
 from calib_core.synth.generate import generate_session  # noqa: E402
@@ -60,7 +60,7 @@ def _captures(root: Path):
 
 def accuracy(roots: dict[str, list[Path]], beam_scales=(1.0,)) -> tuple[list[dict], dict]:
     """Per preset and method: error statistics in mm and detection counts; and the effective
-    beam width estimated per session (calib_core.detect.sonar_beam)."""
+    beam width estimated per session (calib_core.detect.sonar.beam)."""
     rows, widths = [], {}
     for preset, paths in roots.items():
         data = []

@@ -1,8 +1,8 @@
-"""Range-side detection on held-out range sensors (calib_core.synth.range_heldout): a 128-ring
+"""Range-side detection on held-out range sensors (calib_core.synth.range.heldout): a 128-ring
 spinning LiDAR (Ouster-like), a solid-state rosette LiDAR (Livox-like) and an active-stereo depth
 camera (RealSense-like), none of which the detector was developed against.
 
-Single captures (calib_core.synth.range_capture) of every held-out sensor x holder, seeds
+Single captures (calib_core.synth.range.capture) of every held-out sensor x holder, seeds
 ``--first`` .. ``--first + --captures - 1``; the beam width is estimated from 8 other captures
 of the pair (seeds 0-7, as a session would, without being told the sensor). Per case: found
 within ``--tol-mm`` of the truth ("right"), found farther ("WRONG"), refused (with reasons);
@@ -26,9 +26,9 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from benchmarks.bench_detection_range import _stats, _why  # noqa: E402
-from calib_core.detect.sonar import detect_sphere_in_cloud  # noqa: E402
-from calib_core.detect.sonar_beam import estimate_beam_width_deg  # noqa: E402
-from calib_core.synth.range_capture import HELDOUT, range_capture  # noqa: E402
+from calib_core.detect.sonar.detect import detect_sphere_in_cloud  # noqa: E402
+from calib_core.detect.sonar.beam import estimate_beam_width_deg  # noqa: E402
+from calib_core.synth.range.capture import HELDOUT, range_capture  # noqa: E402
 
 HOLDERS = ("chair", "table", "stick", "hand")
 TARGET_RECALL = 0.98

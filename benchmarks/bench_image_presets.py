@@ -27,8 +27,8 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from calib_core.detect.image import detect_sphere_in_image  # noqa: E402
-from calib_core.detect.image_score import reliability_table  # noqa: E402
+from calib_core.detect.image.detect import detect_sphere_in_image  # noqa: E402
+from calib_core.detect.image.score import reliability_table  # noqa: E402
 from calib_core.synth.image_cases import KINDS, ImageCase, render_case  # noqa: E402
 
 TOL_PX = 3.0

@@ -2,7 +2,7 @@
 
 For each preset and seed a session is generated (``calib_core.synth.generate``; cached in
 ``--cache`` so that a second run only re-detects), and every camera image goes through
-:func:`calib_core.detect.image.detect_sphere_in_image` with the session's background when it
+:func:`calib_core.detect.image.detect.detect_sphere_in_image` with the session's background when it
 has one (no sonar-guided second look: the image side on its own). Against the ground truth:
 
 - "right": found within 3 px of the true projection of the sphere centre;
@@ -32,8 +32,8 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from calib_core.detect.image import detect_sphere_in_image  # noqa: E402
-from calib_core.detect.image_score import reliability_table  # noqa: E402
+from calib_core.detect.image.detect import detect_sphere_in_image  # noqa: E402
+from calib_core.detect.image.score import reliability_table  # noqa: E402
 from calib_core.detect.reasons import reason_kind  # noqa: E402
 from calib_core.io.images import load_image  # noqa: E402
 from calib_core.pipeline import SessionData  # noqa: E402

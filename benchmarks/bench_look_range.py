@@ -24,7 +24,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from calib_core.camera import CameraModel  # noqa: E402
-from calib_core.disambiguate import resolve_candidates  # noqa: E402
+from calib_core.disambiguate.image import resolve_candidates  # noqa: E402
 from calib_core.geometry import invert_T, make_T  # noqa: E402
 from calib_core.pipeline import _trusted  # noqa: E402
 from scipy.spatial.transform import Rotation  # noqa: E402

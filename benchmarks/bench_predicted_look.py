@@ -1,4 +1,4 @@
-"""The look at a predicted place and size (``calib_core.detect.image_predicted``) on held-out cases.
+"""The look at a predicted place and size (``calib_core.detect.image.predicted``) on held-out cases.
 
 For rendered single-image cases (``calib_core.synth.image_cases``, kinds chair and clutter, seeds
 from 1000), the prediction is the truth disturbed as a rough rig registration would disturb it
@@ -20,12 +20,13 @@ the look's own outline refitted with the size free (:func:`free_refit_range`, ed
 TOL_FRAC radii of the look's outline), the option of recording a size measured without the prior.
 
 Run: .venv/bin/python benchmarks/bench_predicted_look.py [--kinds chair clutter] [--seeds 12] [--range-bias 0.02]
-     [--range-only]
+     [--range-only] [--cache DIR]
 """
 
 from __future__ import annotations
 
 import argparse
+import pickle
 import sys
 from collections import Counter
 from pathlib import Path
@@ -35,11 +36,11 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from calib_core.detect import image_predicted  # noqa: E402
-from calib_core.detect.image import prepare_background  # noqa: E402
-from calib_core.detect.image_cone import fit_cone, normalize_near  # noqa: E402
-from calib_core.detect.image_fit import CORR_LENGTH_PX, EDGE_SPACING_PX, _Signal  # noqa: E402
-from calib_core.detect.image_predicted import detect_at_prediction  # noqa: E402
+from calib_core.detect.image import predicted as image_predicted  # noqa: E402
+from calib_core.detect.image.detect import prepare_background  # noqa: E402
+from calib_core.detect.image.cone import fit_cone, normalize_near  # noqa: E402
+from calib_core.detect.image.fit import CORR_LENGTH_PX, EDGE_SPACING_PX, _Signal  # noqa: E402
+from calib_core.detect.image.predicted import detect_at_prediction  # noqa: E402
 from calib_core.detect.reasons import reason_kind  # noqa: E402
 from calib_core.synth.image_cases import render_case  # noqa: E402
 
@@ -57,7 +58,7 @@ def free_refit_range(image, cam, radius_m: float, uv, r_pred: float, background,
     m, (H, W) = int(r_pred + 2 * band + 8), image.shape[:2]
     box = (max(0, int(uv[0]) - m), max(0, int(uv[1]) - m), min(W, int(uv[0]) + m + 1), min(H, int(uv[1]) + m + 1))
     sig = _Signal(image, None if background is None else prepare_background(background).image, box)
-    pts, normal_of, _, _ = image_predicted.edge_points(cam, sig, w0, a0, band)
+    pts, normal_of, _, _, _ = image_predicted.edge_points(cam, sig, w0, a0, band)
     xy = normalize_near(cam, pts)
     w = cam.rays(np.asarray(det.center_uv_px, float).reshape(1, 2))[0]
     w, a = w / np.linalg.norm(w), float(np.arcsin(radius_m / det.range_m))
@@ -75,13 +76,36 @@ def free_refit_range(image, cam, radius_m: float, uv, r_pred: float, background,
     return radius_m / np.sin(f.a_rad), float(s)
 
 
+def _blur_px(case) -> float:
+    """The motion kind's blur length (px, from its label "…/12px"); 0 for the other kinds."""
+    part = case.label.split("/")[1] if case.label.count("/") >= 2 else ""
+    return float(part[:-2]) if part.endswith("px") and part[:-2].isdigit() else 0.0
+
+
+CACHE: Path | None = None
+
+
+def _render(kind: str, seed: int, with_ball: bool = True):
+    """render_case at scale 0.5, through a pickle cache in CACHE when one is set."""
+    if CACHE is None:
+        return render_case(kind, seed, 0.5, with_ball=with_ball)
+    path = CACHE / f"look_{kind}_{seed}_{int(with_ball)}.pkl"
+    if path.exists():
+        return pickle.loads(path.read_bytes())
+    case = render_case(kind, seed, 0.5, with_ball=with_ball)
+    CACHE.mkdir(parents=True, exist_ok=True)
+    path.with_suffix(".tmp").write_bytes(pickle.dumps(case))
+    path.with_suffix(".tmp").replace(path)
+    return case
+
+
 def run_kind(kind: str, seeds, offset_px: float, size_frac: float, range_bias: float = 0.0,
              with_empty: bool = True, free_refit: bool = False) -> dict:
-    st = {"n": 0, "right": 0, "off": 0, "miss": Counter(), "errs": [], "z": [], "false": 0, "empty": 0,
+    st = {"n": 0, "right": 0, "off": 0, "miss": Counter(), "errs": [], "z": [], "blur": [], "false": 0, "empty": 0,
           "range": []}
     for s in seeds:
         rng = np.random.default_rng(s)
-        case = render_case(kind, s, 0.5)
+        case = _render(kind, s)
         if case.range_m is None:
             continue
         r_px = case.cam.fx * case.radius_m / case.range_m
@@ -104,16 +128,26 @@ def run_kind(kind: str, seeds, offset_px: float, size_frac: float, range_bias: f
             e = det.center_uv_px - case.true_uv_px
             st["errs"].append(float(np.hypot(*e)))
             st["z"].append(float(np.sqrt(e @ np.linalg.solve(det.cov_uv_px2, e) / 2)))
+            st["blur"].append(_blur_px(case))
             st["right" if np.hypot(*e) <= 3 else "off"] += 1
         else:
             st["miss"][reason_kind(det.reason)] += 1
         if not with_empty:
             continue
-        empty = render_case(kind, s, 0.5, with_ball=False)
+        empty = _render(kind, s, with_ball=False)
         d0 = detect_at_prediction(empty.image, empty.cam, case.radius_m, uv, r_pred, empty.background, shift_frac=shift)
         st["empty"] += 1
         st["false"] += d0.found
     return st
+
+
+def _blurred(st: dict) -> str:
+    """The found looks on balls blurred by 5 px or more: count, centre RMS, mean Mahalanobis^2."""
+    b = np.asarray(st["blur"]) >= 5
+    if not b.any():
+        return "-"
+    e, z = np.asarray(st["errs"])[b], np.asarray(st["z"])[b]
+    return f"{b.sum()}, {np.sqrt(np.mean(e ** 2)):.2f}, {2 * np.mean(z ** 2):.2f}"
 
 
 def main(argv=None) -> int:
@@ -125,19 +159,25 @@ def main(argv=None) -> int:
     ap.add_argument("--range-bias", type=float, default=0.0,
                     help="prediction's range off by this fraction too: adds the range table (with / without the prior)")
     ap.add_argument("--range-only", action="store_true", help="only the range table (with --range-bias)")
+    ap.add_argument("--cache", type=Path, default=None, help="keep the rendered cases here (rendering is most of the time)")
     a = ap.parse_args(argv)
+    global CACHE
+    CACHE = a.cache
     seeds = range(1000, 1000 + a.seeds)
     print(f"Look at the predicted place and size, seeds 1000-{999 + a.seeds}, scale 0.5, prediction off by "
           f"{a.offset:g} px and up to {100 * a.size:g} % in size")
     print("| kind | cases | found within 3 px | found > 3 px off | not found (reason: count) | max err (px) "
-          "| median err / sigma | scenes without the ball: found (false) |")
-    print("|---|---|---|---|---|---|---|---|")
+          "| median err / sigma | mean Mahalanobis^2 (2 = right) | found, blur >= 5 px: n, centre RMS (px), mean Mahalanobis^2 "
+          "| scenes without the ball: found (false) |")
+    print("|---|---|---|---|---|---|---|---|---|---|")
     for kind in [] if a.range_only else a.kinds:
         st = run_kind(kind, seeds, a.offset, a.size)
         miss = ", ".join(f"{k}: {v}" for k, v in st["miss"].most_common()) or "-"
         mx = f"{max(st['errs']):.2f}" if st["errs"] else "-"
         z = f"{np.median(st['z']):.2f}" if st["z"] else "-"
-        print(f"| {kind} | {st['n']} | {st['right']} | {st['off']} | {miss} | {mx} | {z} | {st['false']} of {st['empty']} |")
+        m2 = f"{2 * np.mean(np.square(st['z'])):.2f}" if st["z"] else "-"
+        print(f"| {kind} | {st['n']} | {st['right']} | {st['off']} | {miss} | {mx} | {z} | {m2} | {_blurred(st)} "
+              f"| {st['false']} of {st['empty']} |")
     if a.range_bias:
         range_table(a.kinds, seeds, a.offset, a.size, a.range_bias)
     print("load average:", Path("/proc/loadavg").read_text().split()[:3])

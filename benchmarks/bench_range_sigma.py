@@ -19,7 +19,7 @@ tolerance (calib_core.solve.scale.DEFAULT_DIAMETER_SIGMA_M, relative, on every r
 variance, as the solver's prior on the scale does (an upper bound on what the diameter could
 explain: the synthetic diameters are exact, and the solver puts the tolerance on the scale,
 common to all ranges, not on each range). ``--recompute`` adds, in quadrature, the outline's
-shared floor (:func:`calib_core.detect.image_range.outline_range_floor_m` of the stored range,
+shared floor (:func:`calib_core.detect.image.apparent_range.outline_range_floor_m` of the stored range,
 apparent radius and edge RMS) to each cached sigma: valid for detections cached before that
 floor existed (bench_stated_cov.py's caches of 2026-11-24), what the current detector states
 on the same fits.
@@ -37,8 +37,8 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from benchmarks._table import print_table  # noqa: E402
-from calib_core.detect.image_fit import SHARP_EDGE_WIDTH_PX  # noqa: E402
-from calib_core.detect.image_range import outline_range_floor_m  # noqa: E402
+from calib_core.detect.image.fit import SHARP_EDGE_WIDTH_PX  # noqa: E402
+from calib_core.detect.image.apparent_range import outline_range_floor_m  # noqa: E402
 from calib_core.session import load_session  # noqa: E402
 from calib_core.solve.scale import DEFAULT_DIAMETER_SIGMA_M  # noqa: E402
 from calib_core.synth.ground_truth import load_ground_truth  # noqa: E402

@@ -35,7 +35,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from bench_detection_range import _sweep_session  # noqa: E402
-from calib_core.detect.sonar import detect_sphere_in_cloud  # noqa: E402
+from calib_core.detect.sonar.detect import detect_sphere_in_cloud  # noqa: E402
 from calib_core.io.clouds import load_cloud  # noqa: E402
 from calib_core.session import load_session  # noqa: E402
 from calib_core.synth.ground_truth import load_ground_truth  # noqa: E402

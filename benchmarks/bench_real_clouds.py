@@ -1,7 +1,7 @@
 """Range-side sphere detection on a real session's clouds (default: kinectnet-dev, RGB-D).
 
 As the pipeline does it: the effective beam width is estimated once over the session
-(calib_core.detect.sonar_beam, starting from the manifest's width or 1 deg), then every cloud
+(calib_core.detect.sonar.beam, starting from the manifest's width or 1 deg), then every cloud
 is searched with it. Prints one row per cloud (found, range, diameter seen, warning or
 reason) and a summary: recall, and the reasons for the misses. No ground truth exists for
 these clouds; "diameter seen" against the stated one and the smoothness of the ball's path
@@ -24,8 +24,8 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from calib_core.detect.sonar import detect_sphere_in_cloud  # noqa: E402
-from calib_core.detect.sonar_beam import estimate_beam_width_deg  # noqa: E402
+from calib_core.detect.sonar.detect import detect_sphere_in_cloud  # noqa: E402
+from calib_core.detect.sonar.beam import estimate_beam_width_deg  # noqa: E402
 from calib_core.io.clouds import load_cloud  # noqa: E402
 from calib_core.session import load_session  # noqa: E402
 

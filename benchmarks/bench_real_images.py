@@ -31,8 +31,8 @@ import yaml
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from calib_core.detect.image import detect_sphere_in_image  # noqa: E402
-from calib_core.detect.image_score import reliability_table  # noqa: E402
+from calib_core.detect.image.detect import detect_sphere_in_image  # noqa: E402
+from calib_core.detect.image.score import reliability_table  # noqa: E402
 from calib_core.io.images import load_image  # noqa: E402
 from calib_core.session import load_session  # noqa: E402
 

@@ -21,7 +21,7 @@ C. One camera, true scale 1.02 and 1.00: image ranges from the sphere's apparent
 D. Two cameras, no stereo transform (calib_core.solve.shared_scale): both cameras' ranges as in C
    (the same b on both, one diameter error common to both); one shared scale.
 E. One camera as in C (b = 0), true scale 1.02, where some entries come from the sonar-guided
-   look at the predicted place and size (calib_core.detect.image_predicted), whose prediction
+   look at the predicted place and size (calib_core.detect.image.predicted), whose prediction
    carries the sonar's scale (range |T X_sonar| with the measured, scaled sonar centre). As
    bench_predicted_look.py's range table measures, a look's range follows the prediction's
    (slope LOOK_PULL ~ 1, with or without the 3 % size prior: the fixed-radius circle search picks

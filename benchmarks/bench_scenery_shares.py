@@ -4,8 +4,8 @@ Reads the JSON files ``bench_detection_range.py --sweep --dump DIR`` writes (one
 every capture's sonar entry and its truth) and settles, offline, each capture that records two
 or more round objects of the sphere's size, for a grid of (STATIC_SHARE, MOVING_SHARE):
 
-1. "two candidates" refusals (:func:`calib_core.disambiguate_sonar.choose_by_scenery`);
-2. clear winners and what they beat, as :func:`calib_core.disambiguate_sonar.reexamine_winners`
+1. "two candidates" refusals (:func:`calib_core.disambiguate.sonar.choose_by_scenery`);
+2. clear winners and what they beat, as :func:`calib_core.disambiguate.sonar.reexamine_winners`
    does without images (the sweep renders none).
 
 Counts per pair: settled right (the candidate taken is within a radius of the truth), wrong,
@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
-from calib_core.disambiguate_sonar import MOVING_SHARE, STATIC_SHARE, choose_by_scenery, sightings_sonar_m
+from calib_core.disambiguate.sonar import MOVING_SHARE, STATIC_SHARE, choose_by_scenery, sightings_sonar_m
 
 STATIC_GRID = (0.2, 0.25, 0.3, 0.4, 0.5, 0.6)
 MOVING_GRID = (0.1, 0.15, 0.2, 0.3)
@@ -93,7 +93,7 @@ def shares_tables(paths: list[Path]) -> None:
 
 def evidence_table(cases: list[dict]) -> None:
     """For the "two candidates" refusals that recorded their evidence (score x size agreement x
-    scatter, see calib_core.detect.sonar._Judged.evidence): is the best one the target, and by
+    scatter, see calib_core.detect.sonar.detect._Judged.evidence): is the best one the target, and by
     what ratio over the second (CLEAR_WINNER = 3 takes it)."""
     rows = [c for c in cases if c["kind"] == "two" and c.get("evidence") and c["truth"] is not None]
     if not rows:

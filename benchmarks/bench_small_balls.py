@@ -24,7 +24,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from benchmarks._table import print_table  # noqa: E402
-from calib_core.detect.image import background_model, detect_sphere_in_image, prepare_background  # noqa: E402
+from calib_core.detect.image.detect import background_model, detect_sphere_in_image, prepare_background  # noqa: E402
 from calib_core.geometry import invert_T, transform_points  # noqa: E402
 from calib_core.synth import world  # noqa: E402
 from calib_core.synth.camera_render import RenderOptions, camera_rays, finish_image, render_radiance  # noqa: E402

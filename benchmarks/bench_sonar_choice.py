@@ -18,7 +18,7 @@ those still refused (after).
 entries ``bench_detection_range.py --sweep --dump DIR`` wrote (many seeds and presets, no
 detection run here): every capture whose entry records two or more round objects of the
 sphere's size ("two candidates", or a clear winner and what it beat) is settled with each
-pair of shares (STATIC_SHARE x MOVING_SHARE) as :mod:`calib_core.disambiguate_sonar` does;
+pair of shares (STATIC_SHARE x MOVING_SHARE) as :mod:`calib_core.disambiguate.sonar` does;
 right = the candidate taken is within a radius of the truth. For the clear winners (third
 table) a change is right when the winner was not the target and the loser taken is.
 """

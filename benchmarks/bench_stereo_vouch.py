@@ -35,7 +35,7 @@ sys.path.insert(0, str(ROOT / "benchmarks"))
 import calib_core.pipeline as pipeline  # noqa: E402
 from bench_image_sessions import parse_seeds, session_dir  # noqa: E402
 from calib_core.session import load_session  # noqa: E402
-from calib_core.stereo_vouch import VOUCH_CHI2, VOUCH_FALSE_ALARM, vouch_chi2  # noqa: E402
+from calib_core.stereo.vouch import VOUCH_CHI2, VOUCH_FALSE_ALARM, vouch_chi2  # noqa: E402
 from calib_core.synth.ground_truth import load_ground_truth  # noqa: E402
 from image_flow import _sonar_only  # noqa: E402
 

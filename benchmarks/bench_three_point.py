@@ -6,7 +6,7 @@ For each cached session of ``bench_image_sessions.py`` (run that first; sonar en
 its ``--flow``), the session flow gives each camera's plain detections. Many times over, 3 of the
 right ones are kept plain, 2 others become "partly hidden outlines" (centre and range disturbed as
 stated by ``--partial-px`` / ``--partial-range``) and the rest become images with nothing. The
-registration (:func:`calib_core.disambiguate.resolve_candidates`) then predicts where those are;
+registration (:func:`calib_core.disambiguate.image.resolve_candidates`) then predicts where those are;
 the table compares each prediction the pipeline would trust with the truth. No image is looked at
 again: this measures the gate, not the look.
 
@@ -25,7 +25,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from benchmarks.bench_image_sessions import parse_seeds, session_dir  # noqa: E402
 from benchmarks.image_flow import _sonar_only  # noqa: E402
-from calib_core.disambiguate import resolve_candidates  # noqa: E402
+from calib_core.disambiguate.image import resolve_candidates  # noqa: E402
 from calib_core import pipeline  # noqa: E402
 from calib_core.pipeline import SessionData, _expected_error_px, _trusted, detect_session  # noqa: E402
 from calib_core.session import load_session  # noqa: E402

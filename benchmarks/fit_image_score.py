@@ -1,4 +1,4 @@
-"""Fit the image detection's probability model (calib_core/detect/image_score.py) and measure it.
+"""Fit the image detection's probability model (calib_core/detect/image/score.py) and measure it.
 
 Score round 2: the model in the code is CALIBRATION (the logit and a capped size term, see
 image_score's docstring); PLATT (the logit alone) is still fitted and shown for comparison.
@@ -33,8 +33,8 @@ sys.path.insert(0, str(ROOT / "benchmarks"))
 
 import score_samples as ss  # noqa: E402
 
-from calib_core.detect import image_score  # noqa: E402
-from calib_core.detect.image_fit import clean_rms_px  # noqa: E402
+from calib_core.detect.image import score as image_score  # noqa: E402
+from calib_core.detect.image.fit import clean_rms_px  # noqa: E402
 from calib_core.synth.image_cases import KINDS  # noqa: E402
 
 SESSION_PRESETS = ("lidar-chair", "rgbd-stick", "rgbd-table", "clutter", "seabed-slab")

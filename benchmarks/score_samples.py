@@ -31,8 +31,8 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from calib_core.detect import image as image_det  # noqa: E402
-from calib_core.detect.image import detect_sphere_in_image  # noqa: E402
+from calib_core.detect.image import detect as image_det  # noqa: E402
+from calib_core.detect.image.detect import detect_sphere_in_image  # noqa: E402
 from outline_cues import CUE_NAMES, outline_cues  # noqa: E402
 
 TOL_PX = 3.0

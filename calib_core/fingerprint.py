@@ -40,8 +40,8 @@ def file_sha256(path: Path) -> str:
 # the files whose code decides an automatic entry besides the detectors (relative to calib_core):
 # the loaders the inputs pass through (a changed image scaling, dropped "no return" points or a
 # kept distortion term changes what the detectors see from the same file) and the session-level
-# second looks
-DETECTOR_SOURCES = ("detect/*.py", "pipeline.py", "disambiguate.py", "disambiguate_sonar.py", "camera.py",
+# second looks, and the stereo vouching between cameras
+DETECTOR_SOURCES = ("detect/**/*.py", "pipeline.py", "disambiguate/*.py", "stereo/*.py", "solve/stereo_cov.py", "camera.py",
                     "io/images.py", "io/clouds.py", "io/cloud_ascii.py", "io/cloud_binary.py", "io/off.py",
                     "io/intrinsics.py", "io/kalibr.py")
 

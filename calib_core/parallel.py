@@ -75,7 +75,7 @@ def _task(item):
 def _load_background(path: str):
     import numpy as np
 
-    from calib_core.detect.image import prepare_background
+    from calib_core.detect.image.detect import prepare_background
 
     return prepare_background(np.load(path)) if path else None
 
@@ -177,7 +177,7 @@ def _run_pool(data, todo, progress, n: int, beam_ids: list, beam_detections: dic
     from calib_core.detect.entries import beam_capture_ids
 
     ctx = mp.get_context("forkserver")
-    ctx.set_forkserver_preload(["calib_core.pipeline", "calib_core.detect.image", "calib_core.detect.sonar",
+    ctx.set_forkserver_preload(["calib_core.pipeline", "calib_core.detect.image.detect", "calib_core.detect.sonar.detect",
                                 *_cloud_readers(data, todo)])
     forkserver.ensure_running()  # the server imports the detectors on the other core while we prepare
     results: list = [None] * len(todo)

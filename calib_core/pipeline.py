@@ -21,7 +21,7 @@ import numpy as np
 from calib_core.detect.entries import (SessionData, _as_data, beam_capture_ids, beam_crop_of,  # noqa: F401  (public API)
                                        beam_width_from_crops, detect_image_entry, detect_one, detect_sonar_entry,
                                        estimate_session_beam_width, session_beam_width)
-from calib_core.detect.image_score import entry_logit
+from calib_core.detect.image.score import entry_logit
 from calib_core.detect.reasons import range_is_measured
 from calib_core.detections import is_operator_entry, merge_auto, now_iso
 from calib_core.errors import SessionError
@@ -135,9 +135,9 @@ def detect_session(session_or_data, detections: dict, progress: Progress | None 
 def _resolve_ambiguous_sonar(data: SessionData, detections: dict, only: set) -> dict:
     """Second look at the "two candidates" sonar entries (among captures in ``only``): the
     candidate that the static scenery or the images single out is refitted with the detector
-    seeded there (see :mod:`calib_core.disambiguate_sonar`); kept only when the refit finds the
+    seeded there (see :mod:`calib_core.disambiguate.sonar`); kept only when the refit finds the
     sphere within a radius of it. {capture_id: new sonar entry}."""
-    from calib_core.disambiguate_sonar import choose_sonar_candidates, reexamine_winners
+    from calib_core.disambiguate.sonar import choose_sonar_candidates, reexamine_winners
 
     auto = [(cid, e) for cid in only if (e := detections.get(cid, {}).get("sonar")) and e.get("status") == "auto"]
     ambiguous = [cid for cid, e in auto if e.get("center") is None and e.get("two_candidates")]
@@ -165,10 +165,10 @@ def _resolve_ambiguous_images(data: SessionData, detections: dict, cam: str, onl
 
     "two candidates" images are refitted at the candidate the sonar's centres single out, and
     images whose detection does not fit the rough rig registration are refitted where the
-    registration says the sphere must be (see :mod:`calib_core.disambiguate`). A refit is kept
+    registration says the sphere must be (see :mod:`calib_core.disambiguate.image`). A refit is kept
     only when the detector finds the sphere there; failing that, when the registration is well
     supported, an outline of the predicted size is looked for at the predicted place
-    (:mod:`calib_core.detect.image_predicted`: half an outline is enough) and kept when it agrees
+    (:mod:`calib_core.detect.image.predicted`: half an outline is enough) and kept when it agrees
     with the registration. When that fails too, the entry says why.
 
     When a look at a predicted place found the sphere and other images are still without one, a
@@ -191,8 +191,8 @@ def _resolve_ambiguous_images(data: SessionData, detections: dict, cam: str, onl
 
 def _camera_registration(data: SessionData, detections: dict, cam: str, only: set):
     """(Resolution, {capture: candidates}, [missing captures]) of camera ``cam``'s rough
-    registration to the sonar (:func:`calib_core.disambiguate.resolve_candidates`)."""
-    from calib_core.disambiguate import resolve_candidates
+    registration to the sonar (:func:`calib_core.disambiguate.image.resolve_candidates`)."""
+    from calib_core.disambiguate.image import resolve_candidates
 
     centers, cands, missing = _registration_inputs(detections, cam, only)
     range_free = [c for c in cands if not range_is_measured(detections[c][cam])]
@@ -294,9 +294,9 @@ def _well_registered(res, n_with_candidates: int) -> bool:
 def _stereo_source(regs: dict, b: str, stereo: dict) -> str | None:
     """The camera whose registration, carried by the stereo transforms, predicts camera ``b``'s
     centres: well registered, tied to ``b`` by a stated stereo transform or a chain of them
-    (:mod:`calib_core.stereo_chain`), and better registered than ``b`` (more plain detections agree
+    (:mod:`calib_core.stereo.chain`), and better registered than ``b`` (more plain detections agree
     with it; then the smaller scatter)."""
-    from calib_core.stereo_chain import stereo_path
+    from calib_core.stereo.chain import stereo_path
 
     def key(c):
         return (regs[c][0].support, -regs[c][0].residual_px)
@@ -317,16 +317,16 @@ def _sonar_centers(detections: dict) -> dict:
 def _stereo_predictions(data: SessionData, detections: dict, only: set) -> dict:
     """{camera b: {capture: StereoPrediction}} from the best registered other camera tied to ``b``
     by the stereo transforms, chained when the session ties both only to a third camera
-    (:mod:`calib_core.stereo_vouch`, :mod:`calib_core.stereo_chain`); empty without a stereo transform."""
+    (:mod:`calib_core.stereo.vouch`, :mod:`calib_core.stereo.chain`); empty without a stereo transform."""
     from calib_core.solve.stereo_cov import key_stereo_cov
-    from calib_core.stereo_chain import chained_stereo
-    from calib_core.stereo_vouch import stereo_predictions
+    from calib_core.stereo.chain import chained_stereo
+    from calib_core.stereo.vouch import stereo_predictions
 
     stereo, cams = data.session.stereo, list(data.session.cameras)
     if not stereo or len(cams) < 2:
         return {}
-    regs = {c: _camera_registration(data, detections, c, only)[:2] for c in cams}
-    regs = {c: (res, len(cands)) for c, (res, cands) in regs.items()}
+    full = {c: _camera_registration(data, detections, c, only)[:2] for c in cams}
+    regs = {c: (res, len(cands)) for c, (res, cands) in full.items()}
     out = {}
     for b in cams:
         a = _stereo_source(regs, b, stereo)
@@ -335,16 +335,33 @@ def _stereo_predictions(data: SessionData, detections: dict, only: set) -> dict:
         T_b_a, cov, _ = chained_stereo(stereo, lambda k: key_stereo_cov(data.session, k)[0], a, b)
         res_a = regs[a][0]
         out[b] = stereo_predictions(data.camera(b), T_b_a, cov, res_a.T_cam_sonar, res_a.residual_px,
-                                    data.camera(a).fx, _sonar_centers(detections), a)
+                                    data.camera(a).fx, _sonar_centers(detections), a,
+                                    _support_centers(data.camera(a), detections, a, *full[a]))
     return out
+
+
+def _support_centers(model, detections: dict, cam: str, res, cands: dict) -> np.ndarray:
+    """(N,3) the sonar centres of camera ``cam``'s plain detections that its registration ``res``
+    rests on: one candidate, a measured centre, within 3 x its scatter (at least 3 px) of its projection."""
+    T, tol = res.T_cam_sonar, max(3.0, 3.0 * res.residual_px)
+    out = []
+    for cid, k in cands.items():
+        e = detections[cid][cam]
+        if len(k) != 1 or e.get("center") is None:
+            continue
+        X = np.asarray(detections[cid]["sonar"]["center"], float)
+        uv = model.project((T[:3, :3] @ X + T[:3, 3])[None])[0]
+        if np.hypot(*(uv - np.asarray(e["center"], float))) <= tol:
+            out.append(X)
+    return np.asarray(out, float).reshape(-1, 3)
 
 
 def _stereo_refusals(data: SessionData, detections: dict, only: set) -> dict:
     """{(capture, camera): entry without a centre} for the plain automatic detections (among
     captures in ``only``) that another camera's registration, carried by the stereo transform,
-    refuses (:func:`calib_core.stereo_vouch.refused`). The refused centre is kept in the entry."""
+    refuses (:func:`calib_core.stereo.vouch.refused`). The refused centre is kept in the entry."""
     from calib_core.detect.reasons import stereo_refusal_reason
-    from calib_core.stereo_vouch import refused
+    from calib_core.stereo.vouch import refused
 
     out = {}
     for cam, preds in _stereo_predictions(data, detections, only).items():
@@ -363,7 +380,7 @@ def _stereo_refusals(data: SessionData, detections: dict, only: set) -> dict:
 
 # A look at the predicted place and size needs a registration that most plain detections agree
 # with (a wrong one puts the look on clutter, where only the null test of
-# calib_core.detect.image_predicted stands between brick and a "sphere"), at least this many
+# calib_core.detect.image.predicted stands between brick and a "sphere"), at least this many
 PREDICTION_MIN_SUPPORT = 4
 # ... and whose ranges agree with the images' ranges (from the apparent size) to this RMS: the
 # look takes the predicted size as known to a few per cent (image_predicted.PRIOR_REL_SIGMA); with
@@ -474,7 +491,7 @@ def _look_at_prediction(data: SessionData, cid: str, cam: str, uvr, why: tuple, 
     its range agrees with the registration), or the first entry with the reason it still failed.
     ``why``: (how far off the prediction may be, px; the phrase naming the registration)."""
     scatter_px, phrase = why
-    from calib_core.detect.image_predicted import detect_at_prediction
+    from calib_core.detect.image.predicted import detect_at_prediction
     from calib_core.io.images import load_image
 
     u, v, rng_m = uvr

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import keyword
 import os
 import sys
 import traceback
@@ -26,8 +27,13 @@ def build_parser(only: str | None = None) -> argparse.ArgumentParser:
     p.add_argument("--version", action="version", version=f"sonarcal {__version__}")
     sub = p.add_subparsers(dest="command", metavar="COMMAND")
     for name in [only] if only in COMMANDS else COMMANDS:
-        importlib.import_module(f"sonarcal_cli.cmd_{name}").add_parser(sub)
+        importlib.import_module(command_module(name)).add_parser(sub)
     return p
+
+
+def command_module(name: str) -> str:
+    """The module of command ``name`` (a keyword such as ``import`` gets PEP 8's trailing underscore)."""
+    return f"sonarcal_cli.commands.{name}_" if keyword.iskeyword(name) else f"sonarcal_cli.commands.{name}"
 
 
 def _quiet_native_logs() -> None:

@@ -176,11 +176,13 @@ def _file_digest(p: Path) -> str:
 
 # ---- CLI ------------------------------------------------------------------
 def cli_command_exists(name: str) -> bool:
-    """True when ``sonarcal_cli/cmd_<name>.py`` exists (for tests of commands still being written)."""
+    """True when ``sonarcal_cli/commands/<name>.py`` exists (for tests of commands still being written)."""
     try:
-        importlib.import_module(f"sonarcal_cli.cmd_{name}")
+        from sonarcal_cli.main import command_module
+
+        importlib.import_module(command_module(name))
     except ModuleNotFoundError as e:
-        if e.name == f"sonarcal_cli.cmd_{name}":
+        if e.name == command_module(name):
             return False
         raise
     return True

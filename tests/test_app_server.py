@@ -36,7 +36,7 @@ def calibrate_fake(wb, T):
 def test_binds_loopback_by_default(wb):
     assert wb.host == "127.0.0.1" and wb.port > 0
     assert wb.url == f"http://127.0.0.1:{wb.port}/?token={wb.token}" and len(wb.token) >= 24
-    from sonarcal_cli import cmd_serve
+    from sonarcal_cli.commands import serve as cmd_serve
 
     p = argparse.ArgumentParser()
     cmd_serve.add_parser(p.add_subparsers())
@@ -84,7 +84,7 @@ def test_overlay_shows_the_reprojected_cloud_mask(wb):
 
 
 def test_pick_in_sonar_picks_the_first_point_along_the_ray(wb, monkeypatch):
-    import app.review as review
+    import app.panels.review as review
 
     seen = {}
 
@@ -164,7 +164,7 @@ def test_fused_view_colours_the_cloud_from_the_image(wb):
 def test_drag_handle_refits_the_sonar_centre_on_release(wb, monkeypatch):
     from types import SimpleNamespace
 
-    import app.review as review
+    import app.panels.review as review
 
     monkeypatch.setattr(review, "refit_sonar", lambda data, cid, seed: {
         "status": "corrected", "center": [float(v) for v in seed], "refit": False})
@@ -182,7 +182,7 @@ def test_drag_handle_refits_the_sonar_centre_on_release(wb, monkeypatch):
 
 
 def test_click_messages_say_a_failed_refit_plainly():
-    from app.images import click_message
+    from app.panels.images import click_message
 
     ok = click_message("p01", "cam2", {"center": [10.0, 20.0], "refit": True}, True)
     failed = click_message("p01", "cam2", {"center": [10.0, 20.0], "refit": False, "refit_reason": "no sphere"}, True)
@@ -193,7 +193,7 @@ def test_click_messages_say_a_failed_refit_plainly():
 
 
 def test_a_click_corrects_the_camera_looked_through_and_refit_uses_the_sphere_size(wb, monkeypatch):
-    import app.images as images
+    import app.panels.images as images
 
     seen = {}
 
@@ -214,7 +214,7 @@ def test_a_click_corrects_the_camera_looked_through_and_refit_uses_the_sphere_si
 
 
 def test_session_tab_follows_a_solve_and_events_are_named(wb):
-    from app.session_panel import calibration_line
+    from app.panels.session import calibration_line
 
     assert "none yet" in wb.session_panel.info.content
     calibrate_fake(wb, np.eye(4))
@@ -230,7 +230,7 @@ def test_session_tab_follows_a_solve_and_events_are_named(wb):
 
 
 def test_review_table_colours_and_states_thresholds(wb):
-    from app.review import DOTS, cell, dot
+    from app.panels.review import DOTS, cell, dot
     from calib_core.diagnose.wording import THRESHOLDS_NOTE
 
     calibrate_fake(wb, np.eye(4))
@@ -273,7 +273,7 @@ def test_default_view_faces_the_image_boards(wb):
     import contextlib
     from types import SimpleNamespace
 
-    from app.scene3d import camera_pose
+    from app.panels.scene3d import camera_pose
 
     calibrate_fake(wb, T_from_rotvec(np.array([0.4, -0.3, 0.2]), np.array([0.1, 0.0, 0.2])))
     client = SimpleNamespace(camera=SimpleNamespace(), atomic=contextlib.nullcontext)

@@ -162,7 +162,7 @@ PAIRS = [(case, cmd) for case in CASES for cmd in COMMANDS
 @pytest.mark.parametrize("case,command", PAIRS)
 def test_bad_input(make_session, tmp_path, capsys, command, case):
     if not cli_command_exists(command):
-        pytest.skip(f"sonarcal_cli/cmd_{command}.py does not exist yet")
+        pytest.skip(f"sonarcal_cli/commands/{command}.py does not exist yet")
     c = CASES[case]
     argv_of, reads = COMMANDS[command]
     root = _session(make_session, tmp_path)
@@ -195,7 +195,7 @@ def test_info_exit_0_writes_nothing(make_session, tmp_path, capsys):
 @pytest.mark.parametrize("command", ["info", "detect", "calibrate", "export", "report", "serve", "plan"])
 def test_missing_session_folder(tmp_path, capsys, command):
     if not cli_command_exists(command):
-        pytest.skip(f"sonarcal_cli/cmd_{command}.py does not exist yet")
+        pytest.skip(f"sonarcal_cli/commands/{command}.py does not exist yet")
     argv = [command, str(tmp_path / "nope")] + (["--format", "json"] if command == "export" else [])
     rc = run_cli(argv)
     out, err = capsys.readouterr()

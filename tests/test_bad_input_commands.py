@@ -43,7 +43,7 @@ CASES = {
 def test_command_bad_input(setup, capsys, case):
     module, argv_of, must_name = CASES[case]
     if not cli_command_exists(module):
-        pytest.skip(f"sonarcal_cli/cmd_{module}.py does not exist yet")
+        pytest.skip(f"sonarcal_cli/commands/{module}.py does not exist yet")
     root, tmp = setup
     if case == "serve broken session":
         (root / "session.yaml").write_text("sphere: [\n")  # never start a server in a test

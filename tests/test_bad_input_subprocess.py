@@ -19,7 +19,7 @@ def _sonarcal(args):
 @pytest.mark.parametrize("command", ["detect"])
 def test_truncated_png_one_line_on_stderr(make_session, tmp_path, command):
     if not cli_command_exists(command):
-        pytest.skip(f"sonarcal_cli/cmd_{command}.py does not exist yet")
+        pytest.skip(f"sonarcal_cli/commands/{command}.py does not exist yet")
     root = make_session(tmp_path, n_captures=3, cameras=("cam1",))
     p = root / "images" / "cam1" / "p02.png"
     data = p.read_bytes()

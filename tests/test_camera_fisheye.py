@@ -132,7 +132,7 @@ def test_kalibr_export_writes_equidistant():
 def test_detector_finds_a_sphere_near_the_corner_of_a_wide_angle_render():
     """A 0.15 m sphere seen 55-60 deg off the axis of a ~150 deg fisheye: strongly squashed,
     and still found within 0.5 px of its true centre's projection with the right range."""
-    from calib_core.detect.image import detect_sphere_in_image
+    from calib_core.detect.image.detect import detect_sphere_in_image
     from calib_core.synth import world
     from calib_core.synth.camera_render import RenderOptions, finish_image, render_radiance
     from calib_core.synth.scene import Scene

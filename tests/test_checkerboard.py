@@ -131,7 +131,7 @@ def test_stereo_transform_recovered(boards):
 
 
 def test_cli_intrinsics_and_stereo(boards, tmp_path):
-    from sonarcal_cli import cmd_intrinsics, cmd_stereo
+    from sonarcal_cli.commands import intrinsics as cmd_intrinsics, stereo as cmd_stereo
 
     (tmp_path / "c1").mkdir()
     (tmp_path / "c2").mkdir()

@@ -10,8 +10,8 @@ import yaml
 import sys
 from pathlib import Path
 
-from calib_core.detect.image import background_model, detect_sphere_in_image
-from calib_core.detect.image_cone import cone_from_conic, fit_conic_normalised
+from calib_core.detect.image.detect import background_model, detect_sphere_in_image
+from calib_core.detect.image.cone import cone_from_conic, fit_conic_normalised
 from calib_core.io.images import load_background_frames
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))  # the analytic image maker next to this file

@@ -10,9 +10,9 @@ standard (they found round patches in ball-free scenes).
 import numpy as np
 import pytest
 
-from calib_core.detect.image import detect_sphere_in_image
-from calib_core.detect.image_edges import edge_widths
-from calib_core.detect.image_fit import SHARP_EDGE_WIDTH_PX, clean_rms_px, outline_rms_limit_px
+from calib_core.detect.image.detect import detect_sphere_in_image
+from calib_core.detect.image.edges import edge_widths
+from calib_core.detect.image.fit import SHARP_EDGE_WIDTH_PX, clean_rms_px, outline_rms_limit_px
 from calib_core.synth.image_cases import render_case
 
 

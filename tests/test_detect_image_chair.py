@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from calib_core.camera import CameraModel
-from calib_core.detect.image import detect_sphere_in_image
+from calib_core.detect.image.detect import detect_sphere_in_image
 from calib_core.io.images import load_image
 from calib_core.pipeline import SessionData
 from calib_core.session import load_session

@@ -7,7 +7,7 @@ the benchmark's held-out seeds (1000+).
 import numpy as np
 import pytest
 
-from calib_core.detect.image import detect_sphere_in_image, two_objects_reason
+from calib_core.detect.image.detect import detect_sphere_in_image, two_objects_reason
 from calib_core.synth.image_cases import render_case
 from calib_core.synth.textures import texture_factor
 
@@ -69,7 +69,7 @@ def test_textures_are_bounded_and_vary():
 
 
 def test_clipped_spot_and_its_hosts():
-    from calib_core.detect.image_highlight import host_candidates, is_clipped_spot
+    from calib_core.detect.image.highlight import host_candidates, is_clipped_spot
 
     img = np.full((100, 120, 3), 120, np.uint8)
     yy, xx = np.mgrid[0:100, 0:120]

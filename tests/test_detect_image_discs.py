@@ -10,10 +10,10 @@ import numpy as np
 import pytest
 
 from calib_core.camera import CameraModel
-from calib_core.detect.image import detect_sphere_in_image
-from calib_core.detect.image_discs import candidates_by_discs
-from calib_core.detect.image_fit import refine_candidate
-from calib_core.detect.image_region import Candidate
+from calib_core.detect.image.detect import detect_sphere_in_image
+from calib_core.detect.image.discs import candidates_by_discs
+from calib_core.detect.image.fit import refine_candidate
+from calib_core.detect.image.region import Candidate
 
 W, H = 640, 480
 
@@ -73,7 +73,7 @@ def test_red_ball_before_red_brick_is_a_disc_candidate_and_found():
 def test_the_disc_cue_looks_when_the_other_cues_propose_nothing_at_all(monkeypatch):
     # outline votes and region contrast with no candidate at all (not even a ragged one): the
     # third cue must still look, as it does when they propose only clutter
-    import calib_core.detect.image as image
+    import calib_core.detect.image.detect as image
 
     monkeypatch.setattr(image, "candidates_by_votes", lambda *a, **k: [])
     monkeypatch.setattr(image, "candidates_single_frame", lambda *a, **k: [])

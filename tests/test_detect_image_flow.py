@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 
 from calib_core.camera import CameraModel
-from calib_core.detect.image_predicted import WHERE, detect_at_prediction
-from calib_core.disambiguate import resolve_candidates
+from calib_core.detect.image.predicted import WHERE, detect_at_prediction
+from calib_core.disambiguate.image import resolve_candidates
 from calib_core.synth.rig import silhouette_uv
 
 RADIUS_M = 0.3
@@ -235,7 +235,7 @@ def test_an_outline_far_from_a_three_point_registration_where_it_is_unknown_does
     """lidar-chair s45: 3 outlines 3.4-7 px from a 3-point registration confirm it; a 4th, 11 px
     off where the registration's own sigma is 116 px (far from its 3 points), said nothing about it
     but made it untrusted everywhere. Where its sigma is small, the same 11 px refute it."""
-    from calib_core.disambiguate import Resolution
+    from calib_core.disambiguate.image import Resolution
     from calib_core.pipeline import _checked, _trusted
 
     T = np.eye(4)

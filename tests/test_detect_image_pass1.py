@@ -12,9 +12,9 @@ import numpy as np
 import pytest
 
 from calib_core.camera import CameraModel
-from calib_core.detect.image import detect_sphere_in_image
-from calib_core.detect.image_cone import fit_cone, normalize_near
-from calib_core.detect.image_fit import _arc_held, _Signal
+from calib_core.detect.image.detect import detect_sphere_in_image
+from calib_core.detect.image.cone import fit_cone, normalize_near
+from calib_core.detect.image.fit import _arc_held, _Signal
 from calib_core.synth.image_cases import render_case
 
 

@@ -11,8 +11,8 @@ outline". The third reading fits the few strongest edges of every ray together.
 import numpy as np
 import pytest
 
-from calib_core.detect.image import detect_sphere_in_image
-from calib_core.detect.image_edges import edge_peaks
+from calib_core.detect.image.detect import detect_sphere_in_image
+from calib_core.detect.image.edges import edge_peaks
 from calib_core.synth.image_cases import render_case
 
 
@@ -38,8 +38,8 @@ def test_ball_before_a_dark_backrest_is_found(seed):
 
 
 def _fit(centre, r, support, score, credible, ok, sigma_px=0.3):
-    from calib_core.detect.image_cone import ConeFit
-    from calib_core.detect.image_fit import CandidateFit
+    from calib_core.detect.image.cone import ConeFit
+    from calib_core.detect.image.fit import CandidateFit
 
     phi = np.linspace(0, 2 * np.pi, 90, endpoint=False)
     sil = np.asarray(centre, float) + r * np.column_stack([np.cos(phi), np.sin(phi)])
@@ -49,7 +49,7 @@ def _fit(centre, r, support, score, credible, ok, sigma_px=0.3):
 
 
 def test_an_outline_read_two_ways_is_refused_when_the_weaker_reading_was_accepted():
-    from calib_core.detect.image import _disputed_by
+    from calib_core.detect.image.detect import _disputed_by
 
     accepted = _fit((400.0, 300.0), 60.0, 0.57, 0.34, credible=False, ok=True)
     better_refused = _fit((403.1, 300.3), 59.0, 0.83, 0.48, credible=False, ok=False)

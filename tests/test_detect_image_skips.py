@@ -8,9 +8,9 @@ from pathlib import Path
 
 import numpy as np
 
-from calib_core.detect.image import _dominated, _same_outline, detect_sphere_in_image
-from calib_core.detect.image_fit import CandidateFit
-from calib_core.detect.image_region import Candidate
+from calib_core.detect.image.detect import _dominated, _same_outline, detect_sphere_in_image
+from calib_core.detect.image.fit import CandidateFit
+from calib_core.detect.image.region import Candidate
 
 sys.path.insert(0, str(Path(__file__).parent))
 from test_detect_image_scenes import make_background, make_camera, render, sphere_pose_at  # noqa: E402

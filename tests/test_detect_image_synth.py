@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from calib_core.detect.image import background_model, detect_sphere_in_image
+from calib_core.detect.image.detect import background_model, detect_sphere_in_image
 from calib_core.geometry import invert_T, transform_points
 from calib_core.synth import world
 from calib_core.synth.camera_render import RenderOptions, finish_image, render_radiance
@@ -54,7 +54,7 @@ def test_bundled_sample_session_if_present():
     """Full 1080p renders of the bundled canal session (skipped while it is absent)."""
     from pathlib import Path
 
-    from calib_core.detect.image import prepare_background
+    from calib_core.detect.image.detect import prepare_background
     from calib_core.io.images import load_background_frames, load_image
     from calib_core.session import load_session
     from calib_core.synth.ground_truth import load_ground_truth

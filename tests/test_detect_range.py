@@ -7,10 +7,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from calib_core.detect.sonar import detect_sphere_in_cloud
-from calib_core.detect.sonar_beam import estimate_beam_width_deg
-from calib_core.synth.range_capture import range_capture
-from calib_core.synth.range_sim import LidarConfig, RgbdConfig, simulate_lidar, simulate_rgbd
+from calib_core.detect.sonar.detect import detect_sphere_in_cloud
+from calib_core.detect.sonar.beam import estimate_beam_width_deg
+from calib_core.synth.range.capture import range_capture
+from calib_core.synth.range.sim import LidarConfig, RgbdConfig, simulate_lidar, simulate_rgbd
 from calib_core.synth.scene import Material, Rect, Scene, Sphere
 
 
@@ -77,7 +77,7 @@ def test_a_ball_carried_by_a_person_is_kept(sensor):
 
 def test_the_carried_preset_alternates_sensors_and_hides_part_of_the_ball():
     from calib_core.synth.presets import for_seed, get_preset
-    from calib_core.synth.range_scenes import carried_by_person, solid_ball
+    from calib_core.synth.range.scenes import carried_by_person, solid_ball
     from calib_core.synth.scene import raycast
 
     p = get_preset("carried")

@@ -7,10 +7,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from calib_core.detect.sonar import detect_sphere_in_cloud
-from calib_core.detect.sonar_outline import longest_attached_arc
-from calib_core.detect.sonar_streams import content_rng, lowest_hashes, thin_hashed
-from calib_core.synth.range_capture import range_capture
+from calib_core.detect.sonar.detect import detect_sphere_in_cloud
+from calib_core.detect.sonar.outline import longest_attached_arc
+from calib_core.detect.sonar.streams import content_rng, lowest_hashes, thin_hashed
+from calib_core.synth.range.capture import range_capture
 
 
 def _box(center_m, half_m: float, rng, n: int = 400) -> np.ndarray:

@@ -2,7 +2,7 @@
 
 The simulator below samples each beam's cone with many sub-rays and keeps the nearest hit
 (sphere, chain, planes, posts, boxes), placed along the beam's centre line: it does not use
-the closed-form cone model of calib_core.detect.sonar_fit, so it checks it.
+the closed-form cone model of calib_core.detect.sonar.fit, so it checks it.
 Sonar frame here: x forward, y left, z up; 256 beams over a 90 deg vertical fan, panned.
 """
 
@@ -12,9 +12,9 @@ import numpy as np
 import pytest
 import yaml
 
-from calib_core.detect.sonar import detect_sphere_in_cloud
-from calib_core.detect.sonar_beam import estimate_beam_width_deg
-from calib_core.detect.sonar_fit import (
+from calib_core.detect.sonar.detect import detect_sphere_in_cloud
+from calib_core.detect.sonar.beam import estimate_beam_width_deg
+from calib_core.detect.sonar.fit import (
     _resid_fn,
     cone_first_return_range_m,
     fit_sphere,
@@ -330,7 +330,7 @@ def test_effective_beam_width_is_estimated_from_a_session():
 
 
 def test_coarse_to_fine_width_search_matches_the_full_grid():
-    from calib_core.detect.sonar_beam import beam_crop, estimate_from_crops
+    from calib_core.detect.sonar.beam import beam_crop, estimate_from_crops
 
     rng = np.random.default_rng(32)
     centers = [random_center(rng, 1.2, 3.0) for _ in range(4)]

@@ -2,7 +2,7 @@
 in the detector's crop: the fit must not slide down into the block."""
 import numpy as np
 
-from calib_core.detect.sonar import detect_sphere_in_cloud
+from calib_core.detect.sonar.detect import detect_sphere_in_cloud
 
 
 def _ray_cast(dirs, c, r, box_lo, box_hi):
@@ -40,8 +40,8 @@ def test_a_block_under_the_ball_does_not_widen_the_estimated_beam():
     # the ball continues the outline, and under a wide cone its returns would pass for blooming
     # (the session's estimate rose to ~1.5 deg for a 1 deg beam before the holder's sectors
     # were left out of the width's cost)
-    from calib_core.detect.sonar_beam import estimate_beam_width_deg
-    from calib_core.synth.range_capture import sensor_config
+    from calib_core.detect.sonar.beam import estimate_beam_width_deg
+    from calib_core.synth.range.capture import sensor_config
     from calib_core.synth.scene import Box, Material, Rect, Scene, Sphere
     from calib_core.synth.sonar_sim import simulate_scan
 

@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from calib_core.detect.sonar import detect_sphere_in_cloud
+from calib_core.detect.sonar.detect import detect_sphere_in_cloud
 from calib_core.io.clouds import load_cloud
 from calib_core.session import load_session
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from calib_core.camera import CameraModel
-from calib_core.disambiguate import resolve_candidates
+from calib_core.disambiguate.image import resolve_candidates
 from calib_core.geometry import T_from_rotvec, transform_points
 
 CAM = CameraModel(1920, 1080, [[1100, 0, 960], [0, 1100, 540], [0, 0, 1]], [-0.2, 0.08, 0.001, -0.001, 0.0])

@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from calib_core.detect.sonar import detect_sphere_in_cloud
-from calib_core.disambiguate_sonar import (choose_by_image, choose_by_scenery, choose_sonar_candidates, image_phrase,
+from calib_core.detect.sonar.detect import detect_sphere_in_cloud
+from calib_core.disambiguate.sonar import (choose_by_image, choose_by_scenery, choose_sonar_candidates, image_phrase,
                                          reexamine_winners, winner_phrase)
 from calib_core.geometry import T_from_rotvec, transform_points
 from calib_core.io.clouds import Cloud, load_cloud, save_cloud

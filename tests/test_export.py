@@ -19,7 +19,7 @@ from calib_core.export import FORMATS, FrameNames, export_text
 from calib_core.geometry import T_from_rotvec, invert_T
 from calib_core.io.intrinsics import save_intrinsics_ros
 from calib_core.results import save_calibration
-from sonarcal_cli import cmd_export
+from sonarcal_cli.commands import export as cmd_export
 
 TOL = 1e-9
 

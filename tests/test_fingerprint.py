@@ -86,7 +86,7 @@ def test_parallel_detection_equals_sequential(small):
     assert _strip(par) == _strip(dets)
 
 
-@pytest.mark.parametrize("rel", ["detect/sonar.py", "io/images.py", "io/clouds.py", "io/intrinsics.py", "camera.py",
+@pytest.mark.parametrize("rel", ["detect/sonar/detect.py", "io/images.py", "io/clouds.py", "io/intrinsics.py", "camera.py",
                                  "io/kalibr.py", "io/cloud_ascii.py", "io/cloud_binary.py", "io/off.py"])
 def test_detector_version_follows_the_loaders_the_inputs_pass_through(tmp_path, rel):
     """A changed loader (16-bit scaling, "no return" points dropped, distortion terms kept)

@@ -8,9 +8,9 @@ edge RMS)."""
 import numpy as np
 import pytest
 
-from calib_core.detect.image import detect_sphere_in_image
-from calib_core.detect.image_fit import SYS_FRACTION
-from calib_core.detect.image_range import cone_range_sigma_m, outline_range_floor_m
+from calib_core.detect.image.detect import detect_sphere_in_image
+from calib_core.detect.image.fit import SYS_FRACTION
+from calib_core.detect.image.apparent_range import cone_range_sigma_m, outline_range_floor_m
 from calib_core.synth.image_cases import render_case
 
 

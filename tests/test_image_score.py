@@ -1,9 +1,9 @@
-"""The image detection score as a probability (calib_core.detect.image_score)."""
+"""The image detection score as a probability (calib_core.detect.image.score)."""
 
 import numpy as np
 
-from calib_core.detect import image_score
-from calib_core.detect.image_score import (ScoreModel, features, fit, fit_logistic, logit, probability,
+from calib_core.detect.image import score as image_score
+from calib_core.detect.image.score import (ScoreModel, features, fit, fit_logistic, logit, probability,
                                            recalibrate, reliability_rows, reliability_table)
 
 
@@ -88,7 +88,7 @@ def test_size_term_raises_the_score_of_larger_outlines_up_to_the_cap():
 
 
 def test_entry_logit_reads_the_features_an_entry_records():
-    from calib_core.detect.image_fit import clean_rms_px
+    from calib_core.detect.image.fit import clean_rms_px
 
     e = {"center": [1.0, 2.0], "radius_px": 40.0, "outline_coverage": 0.8, "edge_rms_px": 0.4,
          "outside_mismatch": 0.05, "edge_contrast": 30.0, "runner_up_ratio": 0.1}

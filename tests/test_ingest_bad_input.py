@@ -188,3 +188,35 @@ def test_synth_writes_a_bag_beside_the_session(tmp_path, capsys):
     rc = main(["synth", str(tmp_path / "q2"), "--preset", "quick", "--scale", "0.1", "--bag", "ros1",
                "--bag-path", str(bag)])
     assert rc == 2 and "exists already" in capsys.readouterr().err
+
+
+def _camchain(path: Path) -> Path:
+    """A two-camera Kalibr camchain: cam0 is not our camera (fx 500), cam1 is (fx 61)."""
+    def entry(f):
+        return {"camera_model": "pinhole", "intrinsics": [f, f, 32.0, 24.0], "distortion_model": "radtan",
+                "distortion_coeffs": [0.0, 0.0, 0.0, 0.0], "resolution": [64, 48], "rostopic": "/x/image_raw"}
+    import yaml
+
+    path.write_text(yaml.safe_dump({"cam0": entry(500.0), "cam1": entry(61.0)}))
+    return path
+
+
+def test_intrinsics_entry_names_the_camchain_entry(tmp_path, capsys):
+    """``--intrinsics cam1=chain.yaml --intrinsics-entry cam1=cam1`` takes that entry of the camchain;
+    without it, a camchain whose entries name no camera is refused (no guess)."""
+    from calib_core.io.intrinsics import load_intrinsics
+    from calib_core.session import load_session
+
+    bag, chain = _bag(tmp_path / "a.bag"), _camchain(tmp_path / "chain.yaml")
+    rc, err = _run(capsys, bag, "--out", tmp_path / "s", "--diameter", 0.2, "--split", "message",
+                   "--intrinsics", f"cam1={chain}")
+    assert rc == 2 and "chain.yaml" in err and len(err.splitlines()) == 1, err
+    assert not (tmp_path / "s").exists()
+    rc, err = _run(capsys, bag, "--out", tmp_path / "s", "--diameter", 0.2, "--split", "message",
+                   "--intrinsics", f"cam1={chain}", "--intrinsics-entry", "cam2=cam1")
+    assert rc == 2 and "--intrinsics-entry" in err, err
+    rc, err = _run(capsys, bag, "--out", tmp_path / "s", "--diameter", 0.2, "--split", "message",
+                   "--intrinsics", f"cam1={chain}", "--intrinsics-entry", "cam1=cam1")
+    assert rc == 0, err
+    cam = load_intrinsics(load_session(tmp_path / "s").cameras["cam1"].intrinsics_path)
+    assert cam.K[0, 0] == pytest.approx(61.0)

@@ -107,7 +107,7 @@ def test_report_section_names_the_drifting_capture(synth, imported):
 
 
 def test_workbench_shows_the_track(synth, imported):
-    from app.motion_panel import motion_markdown
+    from app.panels.motion import motion_markdown
     from app.server import Workbench
 
     _, folder, _, drift_id = synth

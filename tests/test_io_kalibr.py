@@ -73,6 +73,8 @@ def test_one_camera_chain_needs_no_name(tmp_path):
     (dict(distortion_coeffs=[0.1, float("nan"), 0, 0]), "NaN"),
     (dict(resolution=[0, 600]), "not plausible"),
     (dict(intrinsics=[-5.0, 460.0, 480.0, 300.0]), "focal lengths must be positive"),
+    (dict(distortion_model="none"), "distortion_model 'none' but distortion_coeffs are not zero"),
+    (dict(distortion_model="none", distortion_coeffs="x"), "must be a list of numbers"),
 ])
 def test_bad_entries_are_refused_in_one_line(tmp_path, change, match):
     p = _write(tmp_path, {"cam0": {**CHAIN["cam1"], **change}})
@@ -200,3 +202,13 @@ def test_intrinsics_entry_on_a_ros_file_is_refused(tmp_path):
     assert load_intrinsics(p).width_px == 640
     with pytest.raises(SessionError, match="not a Kalibr camchain"):
         load_intrinsics(p, "cam1", entry="cam0")
+
+
+@pytest.mark.parametrize("coeffs", [None, [], [0.0, 0.0, 0.0, 0.0]])
+def test_none_distortion_with_no_or_zero_coefficients_is_a_pinhole(tmp_path, coeffs):
+    entry = {**CHAIN["cam0"], "distortion_model": "none"}
+    entry.pop("distortion_coeffs")
+    if coeffs is not None:
+        entry["distortion_coeffs"] = coeffs
+    cam = load_intrinsics(_write(tmp_path, {"cam0": entry}))
+    assert not cam.fisheye and not np.any(cam.dist) and cam.fx == 1100.5

@@ -14,7 +14,7 @@ import cv2
 import numpy as np
 
 from calib_core.camera import CameraModel
-from calib_core.detect.image_predicted import PRIOR_REL_SIGMA, detect_at_prediction
+from calib_core.detect.image.predicted import PRIOR_REL_SIGMA, detect_at_prediction
 from calib_core.detect.reasons import (OUTLINE_SEEN_KEY, RANGE_PRIOR_KEY, entry_score, range_is_measured, score_phrase,
                                        score_text)
 from calib_core.pipeline import correspondences
@@ -60,7 +60,7 @@ def test_score_words_built_once():
 
 
 def test_review_cell_shows_a_look_as_outline_seen_not_as_a_score():
-    from app.review import DOTS, cell
+    from app.panels.review import DOTS, cell
 
     c = cell({"status": "auto", "score": None, "score_text": "outline seen 62 %", "residual_px": 0.5, "found": True,
               "flag": None})
@@ -107,7 +107,7 @@ def test_the_clear_refit_decision_does_not_move_with_the_calibration(monkeypatch
     """pipeline keeps a free refit over the look at the logistic's even odds, whatever the score's
     calibration (score round 2 changed it; the decision must not change silently)."""
     from calib_core import pipeline
-    from calib_core.detect import image_score
+    from calib_core.detect.image import score as image_score
 
     base = {"center": [1.0, 2.0], "radius_px": 60.0, "outline_coverage": 0.8, "edge_rms_px": 0.5,
             "outside_mismatch": 0.1, "edge_contrast": 12.0, "runner_up_ratio": 0.0}

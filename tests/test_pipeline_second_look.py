@@ -11,11 +11,12 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from calib_core import disambiguate, pipeline
+from calib_core import pipeline
+from calib_core.disambiguate import image as disambiguate
 from calib_core.camera import CameraModel
 from calib_core.detect.reasons import count_reasons
 from calib_core.detect.types import ImageDetection
-from calib_core.disambiguate import Resolution
+from calib_core.disambiguate.image import Resolution
 
 CAM = CameraModel(640, 480, np.array([[500.0, 0, 320], [0, 500.0, 240], [0, 0, 1]]))
 UVR = (320.0, 240.0, 2.0)
@@ -62,7 +63,7 @@ def test_second_look_says_what_the_first_detection_saw(stand_ins):
 
 
 def test_a_failed_look_keeps_the_first_detections_own_reason(monkeypatch):
-    import calib_core.detect.image_predicted as predicted
+    import calib_core.detect.image.predicted as predicted
     import calib_core.io.images as images
 
     look = "no round outline near the sonar's prediction"
@@ -79,7 +80,7 @@ def test_a_failed_look_keeps_the_first_detections_own_reason(monkeypatch):
 
 
 def test_a_look_at_another_range_is_counted_under_one_plain_kind(monkeypatch):
-    import calib_core.detect.image_predicted as predicted
+    import calib_core.detect.image.predicted as predicted
     import calib_core.io.images as images
 
     monkeypatch.setattr(images, "load_image", lambda path, wh: np.zeros((wh[1], wh[0], 3), np.uint8))

@@ -1,12 +1,12 @@
-"""Held-out range sensors (calib_core.synth.range_heldout) and what the detector needed for them."""
+"""Held-out range sensors (calib_core.synth.range.heldout) and what the detector needed for them."""
 
 import numpy as np
 import pytest
 
-from calib_core.detect.sonar import detect_sphere_in_cloud
-from calib_core.detect.sonar_fit import robust_sigma
-from calib_core.detect.sonar_outline import attached_sectors, sample_spacing_rad
-from calib_core.synth.range_capture import HELDOUT, range_capture
+from calib_core.detect.sonar.detect import detect_sphere_in_cloud
+from calib_core.detect.sonar.fit import robust_sigma
+from calib_core.detect.sonar.outline import attached_sectors, sample_spacing_rad
+from calib_core.synth.range.capture import HELDOUT, range_capture
 
 
 @pytest.mark.parametrize("sensor", HELDOUT)
@@ -22,7 +22,7 @@ def test_a_heldout_sensor_is_deterministic_and_its_plain_ball_is_found(sensor):
 
 
 def test_lidar128_rings_have_their_own_noise_and_stereo_depth_comes_in_steps():
-    from calib_core.synth.range_heldout import StereoConfig, simulate_stereo
+    from calib_core.synth.range.heldout import StereoConfig, simulate_stereo
     from calib_core.synth.scene import Rect, Scene
 
     wall = Scene((Rect((3.0, 0, 0), (-1, 0, 0), (4.0, 4.0), u=(0, 1, 0)),))

@@ -22,7 +22,7 @@ from calib_core.io.intrinsics import save_intrinsics_ros
 from calib_core.report import build_report
 from calib_core.results import save_calibration
 from calib_core.session import load_session
-from sonarcal_cli import cmd_report
+from sonarcal_cli.commands import report as cmd_report
 
 R_SPHERE = 0.11
 

@@ -93,7 +93,7 @@ def test_scale_option_estimates_range_scale(tmp_path):
 
 
 def _args(argv):
-    from sonarcal_cli import cmd_calibrate
+    from sonarcal_cli.commands import calibrate as cmd_calibrate
 
     sub = argparse.ArgumentParser().add_subparsers()
     cmd_calibrate.add_parser(sub)

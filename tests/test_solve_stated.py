@@ -55,7 +55,12 @@ def _one_camera(tmp_path, rig, drop_cov=False):
     return s, dets
 
 
-def test_calibrate_weighs_sonar_centres_as_stated_times_factor(tmp_path, rig):
+def test_calibrate_weighs_sonar_centres_as_stated_times_factor(tmp_path, rig, monkeypatch):
+    # a factor other than 1, so that the test can tell whether it is applied (the product's is
+    # 1 since the detectors' covariances were made honest at their source)
+    from calib_core.solve import stated
+
+    monkeypatch.setattr(stated, "SONAR_CENTRE_VARIANCE_FACTOR", 2.0)
     s, dets = _one_camera(tmp_path, rig)
     cal = calibrate_session(s, dets, {"detect": False, "leave_one_out": False})
     corr = correspondences(s, dets, "cam1")

@@ -8,7 +8,7 @@ import cv2
 import numpy as np
 
 from calib_core.geometry import invert_T
-from calib_core.stereo_chain import chained_stereo, compose_with_cov, invert_with_cov, stereo_path
+from calib_core.stereo.chain import chained_stereo, compose_with_cov, invert_with_cov, stereo_path
 from stereo_sessions import camera as _cam, detections, transform as _T
 
 

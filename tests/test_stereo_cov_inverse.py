@@ -85,6 +85,7 @@ def test_a_camera_tied_through_an_unsolved_one_joins_the_joint_solve(tmp_path):
     were solved independently (no stereo key for the pair); here "hub" plays cam1's part."""
     from calib_core.io.intrinsics import save_intrinsics_ros
     from calib_core.solve.rig import cov_of_product
+    from calib_core.stereo.chain import invert_with_cov
 
     rig = synthetic_rig(31, n_captures=8, sigma_px=0.3, sigma_m=0.003)
     root = write_session(tmp_path / "s", rig)
@@ -101,7 +102,40 @@ def test_a_camera_tied_through_an_unsolved_one_joins_the_joint_solve(tmp_path):
     info = cal["joint"]["stereo"]["cam2"]
     assert info["via"] == "hub"
     assert np.allclose(np.asarray(info["T_cam_ref"], float), rig.T_cam2_cam1, atol=1e-9)
-    C = default_stereo_cov()  # none stated: assumed for both factors
-    want = cov_of_product(rig.T_cam2_cam1 @ invert_T(H), H, C, C)
+    C = default_stereo_cov()  # none stated: assumed for both transforms as the file states them
+    T_hub_cam1, C_hub_cam1 = invert_with_cov(invert_T(H), C)  # the file states T_cam1_hub
+    want = cov_of_product(rig.T_cam2_cam1 @ invert_T(H), T_hub_cam1, C, C_hub_cam1)
     assert np.allclose(np.asarray(info["covariance"], float), want)
     assert cal["cameras"]["cam2"]["solution"] == "joint"
+
+
+def _T(rotvec, t):
+    T = np.eye(4)
+    T[:3, :3] = Rotation.from_rotvec(rotvec).as_matrix()
+    T[:3, 3] = t
+    return T
+
+
+def test_stereo_link_chains_through_several_cameras():
+    """A rig tied pairwise along a row (cam1-cam2, cam2-cam3 stated backwards, cam3-cam4): the link
+    cam1 -> cam4 is the product along the chain, through "cam2, cam3"; assumed when any link is."""
+    from types import SimpleNamespace
+
+    from calib_core.solve.stereo_cov import stereo_link
+    from calib_core.stereo.chain import compose_with_cov, invert_with_cov
+
+    T21, T23, T43 = _T([0.01, 0.2, 0], [-0.3, 0, 0]), _T([0, -0.1, 0.02], [0.25, 0.01, 0]), _T([0.0, 0.1, 0], [-0.2, 0, 0.01])
+    C = np.diag([np.radians(0.02) ** 2] * 3 + [0.0003**2] * 3)
+    stereo = {"T_cam2_cam1": T21, "T_cam2_cam3": T23, "T_cam4_cam3": T43}
+    raw = {"stereo_covariance": {k: C.tolist() for k in stereo}}
+    s = SimpleNamespace(stereo=stereo, raw=raw, manifest_path="session.yaml", cameras=["cam1", "cam2", "cam3", "cam4"])
+    T, cov, assumed, via = stereo_link(s, "cam1", "cam4")
+    T32, C32 = invert_with_cov(T23, C)
+    T31, C31 = compose_with_cov(T32, C32, T21, C)
+    T41, C41 = compose_with_cov(T43, C, T31, C31)
+    assert via == "cam2, cam3" and assumed is False
+    assert np.allclose(T, T43 @ invert_T(T23) @ T21) and np.allclose(cov, C41)
+    assert stereo_link(s, "cam1", "cam2")[3] is None  # a stated pair is direct
+    del raw["stereo_covariance"]["T_cam2_cam3"]
+    assert stereo_link(s, "cam1", "cam4")[2] is True
+    assert stereo_link(SimpleNamespace(**{**vars(s), "stereo": {"T_cam2_cam1": T21}}), "cam1", "cam4") is None

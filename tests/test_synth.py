@@ -267,7 +267,7 @@ def test_antialiased_silhouette_is_geometrically_exact():
 
 
 def _run_cli(argv):
-    from sonarcal_cli import cmd_synth
+    from sonarcal_cli.commands import synth as cmd_synth
 
     p = argparse.ArgumentParser()
     cmd_synth.add_parser(p.add_subparsers())

@@ -1,4 +1,4 @@
-"""Photographic effects of the renderer (calib_core.synth.photo) and the image cases using them.
+"""Photographic effects of the renderer (calib_core.synth.photo.effects) and the image cases using them.
 
 Each effect is checked to be present where the model puts it (and absent where it should be),
 the default renderer is unchanged, and the cases are deterministic.
@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from calib_core.camera import CameraModel
-from calib_core.synth import photo as ph
+from calib_core.synth.photo import effects as ph
 from calib_core.synth.camera_render import RenderOptions, finish_image, render_radiance
 from calib_core.synth.image_cases import render_case
 from calib_core.synth.room import AIR
@@ -122,7 +122,7 @@ def test_glossy_ball_found_not_its_highlight(seed):
     """A glossy ball (s6: black, on a chair, its shadow on the seat) with a clipped highlight:
     the highlight is a clean round outline itself, 10-30 px off the ball's centre; the ball
     must be found, not the highlight."""
-    from calib_core.detect.image import detect_sphere_in_image
+    from calib_core.detect.image.detect import detect_sphere_in_image
 
     case = render_case("glossy", seed, 0.3)
     det = detect_sphere_in_image(case.image, case.cam, case.radius_m)

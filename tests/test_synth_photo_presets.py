@@ -1,4 +1,4 @@
-"""The photographic session presets "gym" and "carried-photo" (calib_core.synth.photo_session):
+"""The photographic session presets "gym" and "carried-photo" (calib_core.synth.photo.session):
 generation is deterministic, the effects are present where the model puts them, and the plain
 presets do not use them. Small resolutions throughout."""
 
@@ -12,12 +12,12 @@ import pytest
 
 from calib_core.camera import CameraModel
 from calib_core.session import load_session, validate_session
-from calib_core.synth import photo_session as ps
+from calib_core.synth.photo import session as ps
 from calib_core.synth.camera_render import render_radiance
 from calib_core.synth.generate import generate_session
 from calib_core.synth.ground_truth import load_ground_truth
 from calib_core.synth.presets import PRESETS, for_seed
-from calib_core.synth.range_scenes import room, solid_ball
+from calib_core.synth.range.scenes import room, solid_ball
 from calib_core.synth.scene import Scene
 
 SMALL = dict(scale=0.15, n_captures=2, pan_step_deg=3.0)

@@ -18,7 +18,7 @@ import cv2
 import numpy as np
 import yaml
 
-from calib_core.detect.image_cone import centre_uv_and_cov, fit_cone, silhouette_uv
+from calib_core.detect.image.cone import centre_uv_and_cov, fit_cone, silhouette_uv
 from calib_core.session import load_session
 
 

@@ -58,7 +58,7 @@ class SessionData:
         """Background model of a camera (median of its frames, prepared for repeated detections),
         None when it has none."""
         if cam not in self.backgrounds:
-            from calib_core.detect.image import background_model, prepare_background
+            from calib_core.detect.image.detect import background_model, prepare_background
             from calib_core.io.images import load_background_frames
 
             spec = self.session.cameras[cam]
@@ -87,7 +87,7 @@ def _as_data(session_or_data) -> SessionData:
 def detect_image_entry(data: SessionData | Session, capture_id: str, cam: str,
                        hint_uv_px=None, hint_radius_px=None) -> dict:
     """Run the image detector on one capture's image; return a detections.yaml entry (auto)."""
-    from calib_core.detect.image import detect_sphere_in_image
+    from calib_core.detect.image.detect import detect_sphere_in_image
     from calib_core.io.images import load_image
 
     data = _as_data(data)
@@ -106,7 +106,7 @@ def detect_sonar_entry(data: SessionData | Session, capture_id: str, seed_center
     Uses the session's effective beam width (estimated by :func:`detect_session`, else the
     manifest's ``sonar.beam_width_deg``) and records it in the entry.
     """
-    from calib_core.detect.sonar import detect_sphere_in_cloud
+    from calib_core.detect.sonar.detect import detect_sphere_in_cloud
     from calib_core.io.clouds import load_cloud
 
     data = _as_data(data)
@@ -131,7 +131,7 @@ def estimate_session_beam_width(data: SessionData, clouds: dict[str, np.ndarray]
     Why: blooming depends on the angle out to which a strong target still returns, which is
     the nominal width only approximately (it depends on target strength and threshold).
     """
-    from calib_core.detect.sonar_beam import estimate_beam_width_deg
+    from calib_core.detect.sonar.beam import estimate_beam_width_deg
 
     ids = list(clouds)
     nominal = data.session.beam_width_deg or 1.0
@@ -147,14 +147,14 @@ def _operator_center(detections: dict, cid: str):
 
 def beam_capture_ids(capture_ids: list[str]) -> list[str]:
     """The captures the beam-width estimate looks at (spread over the session, at most its maximum)."""
-    from calib_core.detect.sonar_beam import MAX_CAPTURES, _spread_order
+    from calib_core.detect.sonar.beam import MAX_CAPTURES, _spread_order
 
     return [capture_ids[i] for i in _spread_order(len(capture_ids))][:MAX_CAPTURES]
 
 
 def beam_crop_of(data: SessionData, cid: str, detections: dict):
     """One capture's crop for the beam-width estimate (sonar_beam.beam_crop), loaded from its cloud."""
-    from calib_core.detect.sonar_beam import beam_crop
+    from calib_core.detect.sonar.beam import beam_crop
     from calib_core.io.clouds import load_cloud
 
     P = load_cloud(data.session.capture(cid).cloud_path).points_m
@@ -164,7 +164,7 @@ def beam_crop_of(data: SessionData, cid: str, detections: dict):
 
 def beam_width_from_crops(data: SessionData, crops: list) -> float | None:
     """The session's effective beam width from the crops of :func:`beam_crop_of`, or None."""
-    from calib_core.detect.sonar_beam import estimate_from_crops
+    from calib_core.detect.sonar.beam import estimate_from_crops
 
     est = estimate_from_crops(crops, data.session.sphere_radius_m, data.session.beam_width_deg or 1.0)
     return None if est.reason else float(est.beam_width_deg)

@@ -18,7 +18,7 @@ RESIDUAL_PROBLEM_PX = 5.0
 # metres: a lab or harbour scene in millimetres lies 500-20000 "m" away
 MM_CLOUD_MEDIAN_M = 250.0
 
-# An image entry from the look at the sonar-predicted place and size (calib_core.detect.image_predicted)
+# An image entry from the look at the sonar-predicted place and size (calib_core.detect.image.predicted)
 # has no probability: no ``score``, but the share of its outline seen (discounted by the outline's
 # spread) under this key, shown with OUTLINE_SEEN_LABEL wherever a score is shown ...
 OUTLINE_SEEN_KEY = "outline_seen"
@@ -32,7 +32,7 @@ RANGE_PRIOR_KEY = "range_prior_rel_sigma"
 
 def stereo_refusal_reason(off_px: float, source: str) -> str:
     """Why a plain detection was refused by another camera's registration carried by the stereo
-    transform (calib_core.stereo_vouch)."""
+    transform (calib_core.stereo.vouch)."""
     return f"round outline {off_px:.0f} px from where camera {source} and the stereo transform put the sphere"
 
 

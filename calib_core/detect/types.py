@@ -20,7 +20,7 @@ class ImageDetection:
         center_uv_px: (2,) raw (distorted) pixel of the perspective projection of the
             sphere centre (the spec's camera ``center``), not the ellipse centre.
         cov_uv_px2: (2,2) covariance of ``center_uv_px`` in px^2.
-        score: P(the detection is right, within 3 px) (:mod:`calib_core.detect.image_score`), or
+        score: P(the detection is right, within 3 px) (:mod:`calib_core.detect.image.score`), or
             None when no probability is known (the look at a predicted place: its ``outline_seen``
             extra says how much of the outline it saw; not written to detections.yaml then).
         reason: empty when found; else e.g. "no sphere", "cut by the image border", "two candidates".

@@ -1,7 +1,7 @@
 """Is there a round outline of a given size at a given pixel? (robust to partial occlusion)
 
 The diagnosis asks this where the sonar says the sphere must be. The image detector proper
-(calib_core.detect.image) wants most of the silhouette; a target half hidden behind
+(calib_core.detect.image.detect) wants most of the silhouette; a target half hidden behind
 something still shows half of its outline, which is enough to say "the sphere is here".
 Support = the share of directions around the circle along which the image has a strong edge
 running across the radius (gradient along the radius), searched over a small neighbourhood

@@ -22,12 +22,14 @@ MAX_BACKGROUND_FRAMES = 8
 
 @dataclass
 class ImportOptions:
-    """What the user chose (CLI flags); ``intrinsics`` maps camera name -> intrinsics file."""
+    """What the user chose (CLI flags); ``intrinsics`` maps camera name -> intrinsics file, and
+    ``intrinsics_entry`` camera name -> the entry of a Kalibr camchain that is that camera."""
 
     diameter_m: float
     sonar_topic: str | None = None
     camera_topics: list[str] | None = None
     intrinsics: dict[str, Path] = field(default_factory=dict)
+    intrinsics_entry: dict[str, str] = field(default_factory=dict)
     split: str = "auto"
     gap_seconds: float | None = None
     scan_seconds: float | None = None

@@ -9,7 +9,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from calib_core.camera import CameraModel
-from calib_core.detect.image import detect_sphere_in_image, prepare_background
+from calib_core.detect.image.detect import detect_sphere_in_image, prepare_background
 from calib_core.ingest.motion import NS, Track, capture_motion
 from calib_core.ingest.scans import ScanWindow
 

@@ -135,7 +135,8 @@ def _camera_models(reader, path, cams, opts: ImportOptions, conns) -> dict:
     """Intrinsics per camera: a file given with --intrinsics, else the first CameraInfo."""
     from calib_core.io.intrinsics import load_intrinsics
 
-    models = {c.name: load_intrinsics(opts.intrinsics[c.name], c.name) for c in cams if c.name in opts.intrinsics}
+    models = {c.name: load_intrinsics(opts.intrinsics[c.name], c.name, opts.intrinsics_entry.get(c.name))
+              for c in cams if c.name in opts.intrinsics}
     unknown = set(opts.intrinsics) - {c.name for c in cams}
     if unknown:
         raise SessionError(path, f"--intrinsics for unknown camera(s) {', '.join(sorted(unknown))} "
@@ -144,6 +145,8 @@ def _camera_models(reader, path, cams, opts: ImportOptions, conns) -> dict:
     missing = [c.name for c in cams if c.name not in models and not c.info_topic]
     if missing:
         raise SessionError(path, f"no CameraInfo topic for camera(s) {', '.join(missing)}: give --intrinsics NAME=FILE")
+    if not need:  # every camera's intrinsics were given (rosbags reads every topic for an empty list)
+        return models
     wanted = [conns[t] for t in need]
     for conn, t, raw in _messages(reader, path, wanted):
         if need.get(conn.topic) in models:
@@ -190,7 +193,7 @@ class _Backgrounds:
         if self._set:
             return
         self._set = True
-        from calib_core.detect.image import background_model
+        from calib_core.detect.image.detect import background_model
 
         for cam, frames in self.frames.items():
             if frames:

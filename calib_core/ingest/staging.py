@@ -85,11 +85,6 @@ class StagedSession:
         save_intrinsics_ros(self.root / rel, model, cam)
         return rel
 
-    def copy_intrinsics(self, cam: str, src: Path) -> str:
-        from calib_core.io.intrinsics import load_intrinsics
-
-        return self.intrinsics(cam, load_intrinsics(src, cam))
-
     def manifest(self, data: dict) -> None:
         atomic_write_yaml(self.root / "session.yaml", data)
         self._manifest = True

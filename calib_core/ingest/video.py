@@ -65,7 +65,7 @@ def import_video(video: Path, scans_csv: Path, camera: str, out, opts: ImportOpt
     rows = read_scan_csv(scans_csv)
     if camera not in opts.intrinsics:
         raise SessionError(video, f"a video needs the camera's intrinsics: --intrinsics {camera}=FILE")
-    model = load_intrinsics(opts.intrinsics[camera], camera)
+    model = load_intrinsics(opts.intrinsics[camera], camera, opts.intrinsics_entry.get(camera))
     windows = [ScanWindow(int(a * NS), int(b * NS), 1) for _, a, b, _ in rows]
     keeper = FrameKeeper({camera: model}, opts.diameter_m / 2, windows, 0, opts.tolerance_px, opts.tolerance_m,
                          opts.median)
@@ -91,7 +91,7 @@ def import_video(video: Path, scans_csv: Path, camera: str, out, opts: ImportOpt
 
 
 def _read_frames(cap, fps, video, windows, keeper: FrameKeeper, opts, rows, asm: Assembler, progress) -> list:
-    from calib_core.detect.image import background_model
+    from calib_core.detect.image.detect import background_model
 
     camera = next(iter(keeper.cams))
     bgw = opts.background_window_s

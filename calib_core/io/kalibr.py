@@ -50,7 +50,7 @@ def camera_from_camchain(path: Path, data: dict, camera: str | None = None, entr
                                  "(1 to 100000 pixels a side)")
     w, h = (int(round(v)) for v in wh)
     n = _DISTORTIONS[dmodel]
-    coeffs = _numbers(path, entry, key, "distortion_coeffs", n) if n else np.zeros(0)
+    coeffs = _numbers(path, entry, key, "distortion_coeffs", n) if n else _no_distortion(path, entry, key)
     K = np.array([[fu, 0.0, pu], [0.0, fv, pv], [0.0, 0.0, 1.0]])
     name = plain_line(_text(entry.get("camera_name")) or str(key))[:200]
     if dmodel == "equidistant":
@@ -88,6 +88,19 @@ def _text(value) -> str:
 def _names(v: dict, camera: str) -> bool:
     """Does camchain entry ``v`` name ``camera`` (its camera_name, or an element of its rostopic)?"""
     return _text(v.get("camera_name")) == camera or camera in _text(v.get("rostopic")).strip("/").split("/")
+
+
+def _no_distortion(path: Path, entry: dict, key: str) -> np.ndarray:
+    """``distortion_model: none``: coefficients, if any are written, must all be zero. Non-zero
+    ones contradict the model name, and dropping them silently would mis-project every pixel."""
+    given = entry.get("distortion_coeffs")
+    if given is None or (isinstance(given, list) and not given):
+        return np.zeros(0)
+    arr = _numbers(path, entry, key, "distortion_coeffs", np.size(given) if isinstance(given, list) else -1)
+    if np.any(arr != 0):
+        raise SessionError(path, f"{key}: distortion_model 'none' but distortion_coeffs are not zero "
+                                 f"({', '.join(f'{v:.6g}' for v in arr[:6])}): name the model (radtan or equidistant)")
+    return np.zeros(0)
 
 
 def _numbers(path: Path, entry: dict, key: str, field: str, n: int) -> np.ndarray:

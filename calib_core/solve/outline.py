@@ -4,7 +4,7 @@ An image range is ``R / sin(a)`` with ``a`` the half-angle of the silhouette con
 detector fits. Blur through the camera's gamma curve, JPEG and limb shading move the whole
 outline of a ball outwards (or inwards) by about the same number of pixels ``b`` on every
 capture of a camera. The detector's cone fit weighs each outline point's angle by its pixels
-per radian (:func:`calib_core.detect.image_cone.px_per_rad`), so the fitted half-angle is
+per radian (:func:`calib_core.detect.image.cone.px_per_rad`), so the fitted half-angle is
 
     a_obs = a + beta * b,    beta = mean over the outline of 1 / (px per radian)
 
@@ -62,7 +62,7 @@ class OutlineState(RigState):
 def outline_gain(cd: CameraData, rows: np.ndarray, radius_m: float, n: int = 36) -> np.ndarray:
     """``beta`` per row (rad per px of outline bias): the mean of 1 / (px per radian) over the
     silhouette the camera saw (axis from the image centre, half-angle from the image range)."""
-    from calib_core.detect.image_cone import orthonormal_basis, px_per_rad
+    from calib_core.detect.image.cone import orthonormal_basis, px_per_rad
 
     xy = cd.xy[rows]
     w_all = np.column_stack([xy, np.ones(len(xy))])

@@ -21,7 +21,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from calib_core.geometry import invert_T
-from calib_core.stereo_chain import compose_with_cov, invert_with_cov
+from calib_core.stereo.chain import compose_with_cov, invert_with_cov
 from calib_core.solve.model import RigState, per_camera_stats
 from calib_core.solve.refine import (Link, RigProblem, covariance_from_jacobian, jacobian, pose_covariance, refine,
                                      weights_for)
@@ -41,7 +41,7 @@ def default_stereo_cov() -> np.ndarray:
 
 def cov_of_inverse(T_a_b: np.ndarray, cov_ab: np.ndarray) -> np.ndarray:
     """6x6 covariance of ``T_b_a`` from that of ``T_a_b`` (the solver's perturbation; see
-    :func:`calib_core.stereo_chain.invert_with_cov`)."""
+    :func:`calib_core.stereo.chain.invert_with_cov`)."""
     return invert_with_cov(T_a_b, cov_ab)[1]
 
 
@@ -136,7 +136,7 @@ def stereo_share_of_scale(problem: RigProblem, state: RigState, robust: str | No
 
 def cov_of_product(T_a_b: np.ndarray, T_b_c: np.ndarray, cov_ab: np.ndarray, cov_bc: np.ndarray) -> np.ndarray:
     """6x6 covariance of ``T_a_c = T_a_b T_b_c`` from those of two independent factors (see
-    :func:`calib_core.stereo_chain.compose_with_cov`)."""
+    :func:`calib_core.stereo.chain.compose_with_cov`)."""
     return compose_with_cov(T_a_b, cov_ab, T_b_c, cov_bc)[1]
 
 

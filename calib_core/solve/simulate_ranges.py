@@ -4,7 +4,7 @@ The range a camera reports is ``R / sin(a)`` with ``a`` the half-angle of the si
 image detector fits. An outline bias is injected the way it arises, independently of the
 solver's model of it: the true silhouette is drawn in raw pixels (lens distortion included),
 every outline point is moved by ``outline_px`` along the outline's outward normal in the image,
-and the detector's own cone fit (:func:`calib_core.detect.image_cone.fit_cone`) measures the
+and the detector's own cone fit (:func:`calib_core.detect.image.cone.fit_cone`) measures the
 half-angle. A relative diameter error (every range times ``k``) and Gaussian range noise
 (``rel_sigma`` of the range) are added on top.
 """
@@ -14,7 +14,7 @@ from __future__ import annotations
 import numpy as np
 
 from calib_core.camera import CameraModel
-from calib_core.detect.image_cone import fit_cone, silhouette_uv
+from calib_core.detect.image.cone import fit_cone, silhouette_uv
 
 
 def biased_half_angle(cam: CameraModel, P_cam_m: np.ndarray, radius_m: float, outline_px: float,

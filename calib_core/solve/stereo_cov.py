@@ -1,6 +1,6 @@
 """The covariance of a session's stereo transform: stated in session.yaml (for either direction of
 the pair), or assumed; and the link a joint solve takes between two cameras (stated for the pair,
-or chained through one other camera)."""
+or chained through the others)."""
 
 from __future__ import annotations
 
@@ -8,7 +8,8 @@ import numpy as np
 
 from calib_core.errors import SessionError
 from calib_core.geometry import invert_T
-from calib_core.solve.rig import cov_of_inverse, cov_of_product, default_stereo_cov, find_stereo
+from calib_core.solve.rig import cov_of_inverse, default_stereo_cov
+from calib_core.stereo.chain import chained_stereo
 
 
 def session_stereo_cov(session, ref: str, cam: str, T_cam_ref: np.ndarray) -> tuple[np.ndarray, bool]:
@@ -34,20 +35,17 @@ def key_stereo_cov(session, key: str) -> tuple[np.ndarray, bool]:
 
 
 def stereo_link(session, ref: str, cam: str):
-    """(T_cam_ref, covariance, assumed, via) from session.yaml's stereo transforms: stated for the
-    pair (via None), else chained through one other camera ``via`` (a third camera tied to cam1
-    when cam1 itself could not be solved); None when neither."""
-    T = find_stereo(session.stereo, ref, cam)
-    if T is not None:
-        return (T, *session_stereo_cov(session, ref, cam, T), None)
-    for mid in session.cameras:
-        A, B = find_stereo(session.stereo, mid, cam), find_stereo(session.stereo, ref, mid)
-        if mid in (ref, cam) or A is None or B is None:
-            continue
-        (cov_a, assumed_a), (cov_b, assumed_b) = (session_stereo_cov(session, mid, cam, A),
-                                                  session_stereo_cov(session, ref, mid, B))
-        return A @ B, cov_of_product(A, B, cov_a, cov_b), assumed_a or assumed_b, mid
-    return None
+    """(T_cam_ref, covariance, assumed, via) along the shortest chain of session.yaml's stereo
+    transforms (:func:`calib_core.stereo.chain.chained_stereo`): stated for the pair (via None),
+    else chained through the cameras ``via`` names ("cam3", or "cam3, cam4"); ``assumed`` when
+    any link's covariance is the assumed default. None when no chain ties the two."""
+    got = chained_stereo(session.stereo, lambda key: key_stereo_cov(session, key)[0], ref, cam)
+    if got is None:
+        return None
+    T, cov, path = got
+    keys = [f"T_{b}_{a}" if f"T_{b}_{a}" in session.stereo else f"T_{a}_{b}" for a, b in zip(path[:-1], path[1:])]
+    assumed = any(key_stereo_cov(session, key)[1] for key in keys)
+    return T, cov, assumed, ", ".join(path[1:-1]) or None
 
 
 def _stated(session, raw: dict, key: str) -> np.ndarray:

@@ -24,9 +24,9 @@ from calib_core.synth.drift import drift_positions, write_drift_frames
 from calib_core.synth.ground_truth import GT_FILE, GT_FORMAT, to_list
 from calib_core.synth.layout import Layout, Placement, add_surroundings, place_targets, sample_layout
 from calib_core.synth.occlusion import occluded_fraction
-from calib_core.synth.photo_session import background_photo, capture_light, dress, render_capture, session_look
+from calib_core.synth.photo.session import background_photo, capture_light, dress, render_capture, session_look
 from calib_core.synth.presets import for_seed, get_preset
-from calib_core.synth.range_capture import simulate_range
+from calib_core.synth.range.capture import simulate_range
 from calib_core.synth.rig import silhouette_uv
 from calib_core.synth.scene import Scene
 

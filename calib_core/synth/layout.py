@@ -14,10 +14,11 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from calib_core.geometry import invert_T, transform_points
-from calib_core.synth import range_scenes, room, world
+from calib_core.synth import room, world
+from calib_core.synth.range import scenes as range_scenes
 from calib_core.synth.camera_render import RenderOptions
 from calib_core.synth.occlusion import MAX_OCCLUDED_FRACTION, occluded_fraction
-from calib_core.synth.range_capture import in_field, sensor_config
+from calib_core.synth.range.capture import in_field, sensor_config
 from calib_core.synth.rig import sample_in_sensor_view, sample_rig, sample_target_center, sphere_in_image
 from calib_core.synth.scene import Scene
 from calib_core.synth.sonar_sim import SonarConfig

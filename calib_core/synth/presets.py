@@ -65,9 +65,9 @@ class Preset:
     corner_fraction: float = 0.3
     jpeg_quality: int = 90
     # range side (issue 11): the range sensor ("sonar", or "lidar16" / "rgbd" from
-    # calib_core.synth.range_sim, no beam footprint), what holds the ball ("" = the scene's
+    # calib_core.synth.range.sim, no beam footprint), what holds the ball ("" = the scene's
     # chain or stand; "chair", "table", "stick" with a person, or "hand": a person carrying it,
-    # calib_core.synth.range_scenes),
+    # calib_core.synth.range.scenes),
     # a solid ball instead of the open mesh, and the range of true diameters (m)
     range_sensor: str = "sonar"  # or alternatives by seed, "rgbd|lidar16" (see for_seed)
     holder: str = ""
@@ -76,7 +76,7 @@ class Preset:
     drift_m: float = 0.0
     turbidity: float = 0.0
     decoy_hidden: bool = False
-    # photographic look (calib_core.synth.photo_session): "" = the plain renderer; "gym" (glossy gym
+    # photographic look (calib_core.synth.photo.session): "" = the plain renderer; "gym" (glossy gym
     # ball of a shade drawn by seed, key light, cast and contact shadows, vignetting, exposure,
     # textured room) or "carried" (foam ball with a seam / logo, some captures motion-blurred)
     photo: str = ""
@@ -145,7 +145,7 @@ _LIST.append(Preset(
     "seeds); no background frames", n_captures=8, scene="lab", range_sensor="rgbd|lidar16", holder="hand",
     solid_ball=True, diameter_range=(0.3, 0.5), bright=True, n_backgrounds=0))
 
-# photographic sessions (issue 11, real sets A and B): the effects of calib_core.synth.photo
+# photographic sessions (issue 11, real sets A and B): the effects of calib_core.synth.photo.effects
 _LIST += [
     Preset("gym", "real set A: a glossy gym ball (0.5-0.7 m, grey most often, also dark, white or coloured; a "
            "seam, logo or valve) resting on a chair, brick wall, tiled floor, a key light with cast and contact "

@@ -99,7 +99,7 @@ def screen_of(client, box, X_world):
 
 def board_point_world(wb, cam: str, uv) -> np.ndarray:
     """World position of raw pixel ``uv`` on camera ``cam``'s image board."""
-    from app.scene3d import camera_pose
+    from app.panels.scene3d import camera_pose
 
     model = wb.state.camera(cam)
     T, rw, rh = wb.images.board_geometry(cam)

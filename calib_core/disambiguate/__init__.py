@@ -1,0 +1,1 @@
+"""Choosing between candidate detections across a session (image side, sonar side)."""

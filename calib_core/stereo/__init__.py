@@ -1,0 +1,1 @@
+"""Stereo transforms between cameras: chained covariances, and cameras vouching for each other."""

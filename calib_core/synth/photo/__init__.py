@@ -1,0 +1,1 @@
+"""Photographic effects (shadows, highlights, markings, blur) and the held-out photographic kinds."""

@@ -1,0 +1,1 @@
+"""Simulated range sensors (LiDAR, RGB-D, held-out sensors) and their scenes."""

@@ -1,0 +1,1 @@
+"""One module per sonarcal command: ``add_parser(sub)`` and its ``run(args)``."""
