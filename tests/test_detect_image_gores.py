@@ -51,3 +51,44 @@ def test_beach_ball_outline_read_from_several_edges_is_kept():
     case = render_case("panels", 1026, 0.5)  # a 34 px beach ball on a stick: a cap was taken, 8.9 px off
     det = detect_sphere_in_image(case.image, case.cam, case.radius_m)
     assert det.found and np.hypot(*(det.center_uv_px - case.true_uv_px)) < 1.0, det.center_uv_px
+
+
+def _two_textured_surfaces(seed=5) -> np.ndarray:
+    """A brick-like wall above, floor boards below (each one hue, its brightness textured)."""
+    rng = np.random.default_rng(seed)
+    yy, xx = np.mgrid[:200, :200]
+    brick = (0.75 + 0.25 * rng.random((20, 20)))[yy // 10, (xx + 10 * ((yy // 10) % 2)) // 20 % 20]
+    brick[(yy % 10 == 0) | ((xx + 10 * ((yy // 10) % 2)) % 20 == 0)] = 0.45  # mortar lines
+    boards = (0.7 + 0.3 * rng.random(20))[xx // 10] * (0.9 + 0.1 * np.sin(yy / 3.0))
+    img = np.where((yy < 100)[..., None], brick[..., None] * [170, 80, 60], boards[..., None] * [150, 120, 70])
+    return (img + rng.normal(0, 3, img.shape)).clip(0, 255).astype(np.uint8)
+
+
+def test_circle_straddling_two_textured_surfaces_has_no_colour_step():
+    """Motion s1020: a circle across the wall/floor line has two long arcs of one hue each,
+    but on each arc the colour goes on outside it: no step beyond the texture's own."""
+    sig = _Signal(_two_textured_surfaces(), None, (0, 0, 200, 200))
+    sil = _outline(40.0)
+    assert _inside_colour_agreement(sig, sil, 40.0) < SEVERAL_MIN_INSIDE_AGREEMENT
+    assert _inside_colour_arcs(sig, sil, 40.0) < SEVERAL_MIN_INSIDE_AGREEMENT
+
+
+def test_gored_ball_on_textured_surfaces_keeps_its_arcs():
+    """The same surfaces with a 4-gore ball on them: each arc steps across the outline."""
+    img = _two_textured_surfaces()
+    ball = _ball(4)
+    inside = np.hypot(*(np.mgrid[:200, :200] - 100)) < 60
+    img[inside] = ball[inside]
+    sig = _Signal(img, None, (0, 0, 200, 200))
+    assert _inside_colour_arcs(sig, _outline(60.0), 60.0) >= SEVERAL_MIN_INSIDE_AGREEMENT
+
+
+@pytest.mark.parametrize("seed, was_px", [(1017, 3.1), (1022, 26.0)])
+def test_beach_ball_outline_not_pulled_to_a_gore_boundary(seed, was_px):
+    """Panels s1017: pass 1 a few px off on one side, where a gore boundary just inside the limb
+    is the outermost and strongest edge of the narrow band and the limb lies just beyond it;
+    s1022: a circle round the highlight across a gore boundary won over the limb. The pass-2
+    reading from several edges per normal in a wider band finds the limb (it was 3.1 / 26 px off)."""
+    case = render_case("panels", seed, 0.5)
+    det = detect_sphere_in_image(case.image, case.cam, case.radius_m)
+    assert det.found and np.hypot(*(det.center_uv_px - case.true_uv_px)) < 1.0, (was_px, det.center_uv_px)

@@ -28,7 +28,9 @@ import cv2
 import numpy as np
 
 from calib_core.camera import CameraModel
+from calib_core.synth.photo import artefacts as camera_artefacts
 from calib_core.synth.photo import effects as ph
+from calib_core.synth.photo import water as photo_water
 from calib_core.synth.scene import Scene, Sphere, raycast
 from calib_core.synth.textures import texture_factor
 
@@ -52,12 +54,18 @@ class Water:
     light_rgb: tuple = (1.0, 1.0, 0.95)
     ambient: float = 0.35
     diffuse: float = 0.65
+    attenuation_rgb: tuple | None = None  # per-channel c (1/m), replaces attenuation_per_m
+    spot_veil: float = 0.0  # a dive light's glow in the water (see calib_core.synth.photo.water)
+    spot_dir: tuple = (1.0, 0.0, 0.0)
+    spot_power: float = 10.0
 
     def veil(self, dirs_world: np.ndarray) -> np.ndarray:
         """Water radiance B (N,3) seen along unit world directions."""
         up = dirs_world[:, 2]
         side = dirs_world @ np.asarray(self.side_dir, float)
         g = np.clip(1.0 + self.up_gain * up + self.side_gain * side, 0.05, None)
+        if self.spot_veil > 0:
+            g = g + self.spot_veil * np.clip(dirs_world @ np.asarray(self.spot_dir, float), 0, None) ** self.spot_power
         return g[:, None] * np.asarray(self.water_rgb, float)[None, :]
 
 
@@ -130,7 +138,10 @@ def _shade(scene: Scene, water: Water, o_world, d_world, max_range_m, photo: ph.
             Lo = alb * lam[:, None] * np.asarray(water.light_rgb, float)[None, :]
         else:
             Lo = _shade_photo(scene, water, photo, hit[m], p, nn, d_world[m], alb)
-        tr = np.exp(-water.attenuation_per_m * t[m])[:, None]
+        if water.attenuation_rgb is None:
+            tr = np.exp(-water.attenuation_per_m * t[m])[:, None]
+        else:
+            tr = photo_water.attenuation(water, t[m])
         L[m] = Lo * tr + B[m] * (1 - tr)
     return L, hit
 
@@ -143,7 +154,10 @@ def _shade_photo(scene, water, photo, hit, p, n, d, alb):
     if is_ball.any():
         alb[is_ball] = ph.marking_albedo(photo.ball, p[is_ball], alb[is_ball])
     _apply_textures(scene, hit, p, n, alb)
-    return ph.shade_lit(photo, alb, p, n, d, is_ball, water.ambient, water.diffuse, water.light_rgb)
+    Lo = ph.shade_lit(photo, alb, p, n, d, is_ball, water.ambient, water.diffuse, water.light_rgb)
+    if photo.spot_gain > 0:
+        Lo += photo_water.spot_radiance(photo, water, alb, p, n)
+    return Lo
 
 
 def _apply_textures(scene: Scene, hit: np.ndarray, p_world: np.ndarray, n_world: np.ndarray,
@@ -213,12 +227,14 @@ def finish_image(radiance: np.ndarray, options: RenderOptions, rng: np.random.Ge
     (``photo``: vignetting, exposure / white balance and bloom first)."""
     if photo is not None:
         radiance = ph.bloom(ph.apply_lens_and_exposure(radiance, photo) * 255.0, photo) / 255.0
+        radiance = camera_artefacts.optical_blur(radiance, photo)
     img = radiance.astype(np.float32) * (255.0 * options.exposure)
     if options.blur_sigma_px > 0:
         img = cv2.GaussianBlur(img, (0, 0), options.blur_sigma_px)
     sigma = np.sqrt(options.noise_dn ** 2 + options.shot_gain * np.clip(img, 0, None))
     img = img + sigma * rng.standard_normal(img.shape, dtype=np.float32)
-    return np.clip(np.round(img), 0, 255).astype(np.uint8)
+    img = np.clip(np.round(img), 0, 255).astype(np.uint8)
+    return img if photo is None else camera_artefacts.jpeg(img, photo.jpeg_quality)
 
 
 def render_image(scene: Scene, cam: CameraModel, T_world_cam: np.ndarray, water: Water,

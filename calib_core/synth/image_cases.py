@@ -12,7 +12,11 @@ Each case is one rendered camera image of a scene kind (no sonar, no session fil
   edges of things touching the sphere run next to its outline (real data set A);
 - "glossy", "panels", "motion": photographic effects (highlight and bloom, cast and contact
   shadows, markings, vignetting, exposure and white balance, motion blur) on a gym ball on a
-  chair or the floor, a beach ball, a carried foam ball: see :mod:`calib_core.synth.photo.cases`.
+  chair or the floor, a beach ball, a carried foam ball: see :mod:`calib_core.synth.photo.cases`;
+- "sports", "outdoor", "underwater": held-out kinds (patterned sports balls; hard sun, sky and
+  ground textures; colour attenuation, backscatter, caustics, a dive light and marine snow),
+  with camera artefacts (JPEG, high gain, defocus, shake) on a share: see
+  :mod:`calib_core.synth.photo.heldout`.
 
 ``render_case(kind, seed, scale)`` returns the image, the camera, the sphere radius, the true
 projection of the sphere centre (raw px), the visible fraction of the outline and, where the
@@ -30,11 +34,12 @@ from calib_core.geometry import invert_T, transform_points
 from calib_core.synth import room, world
 from calib_core.synth.photo import cases as photo_cases
 from calib_core.synth.range import scenes as range_scenes
+from calib_core.synth.photo import heldout as heldout_cases
 from calib_core.synth.camera_render import RenderOptions, Water, finish_image, render_radiance
 from calib_core.synth.rig import sample_rig, sample_target_center, silhouette_uv
 from calib_core.synth.scene import Scene
 
-KINDS = ("clutter", "big", "turbid", "chair", "glossy", "panels", "motion")
+KINDS = ("clutter", "big", "turbid", "chair", "glossy", "panels", "motion", "sports", "outdoor", "underwater")
 PHOTO_KINDS = {"glossy": photo_cases.glossy, "panels": photo_cases.panels, "motion": photo_cases.motion}
 
 
@@ -65,6 +70,9 @@ def render_case(kind: str, seed: int, scale: float = 0.5, with_ball: bool = True
         return _turbid(rng, rig, cam, T_wc, opts, seed, with_ball)
     if kind == "chair":
         return _chair(rng, rig, cam, T_wc, opts, seed, with_ball)
+    if kind in heldout_cases.HELDOUT_KINDS:
+        L, c, radius, photo, opts, label = heldout_cases.HELDOUT_KINDS[kind](rng, rig, cam, T_wc, scale, with_ball, opts)
+        return _finish(L, None, cam, T_wc, c, radius, opts, rng, f"{label}/s{seed}", photo)
     if kind in PHOTO_KINDS:
         L, c, radius, photo, label = PHOTO_KINDS[kind](rng, rig, cam, T_wc, scale, with_ball)
         return _finish(L, None, cam, T_wc, c, radius, opts, rng, f"{label}/s{seed}", photo)

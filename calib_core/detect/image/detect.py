@@ -29,11 +29,12 @@ import cv2
 import numpy as np
 
 from calib_core.camera import CameraModel
-from calib_core.detect.image.fit import CandidateFit, refine_candidate
-from calib_core.detect.image.fit import TIGHT_MIN_SUPPORT, clean_rms_px, outline_rms_limit_px
+from calib_core.detect.image.blur import blur_range_floor_m, clean_rms_px
+from calib_core.detect.image.fit import TIGHT_MIN_SUPPORT, CandidateFit, refine_candidate
 from calib_core.detect.image.discs import candidates_by_discs
 from calib_core.detect.image.highlight import host_candidates, is_clipped_spot
 from calib_core.detect.image.hough import hough_circle
+from calib_core.detect.image.pattern import enclosing_candidates
 from calib_core.detect.image.apparent_range import cone_range_sigma_m, outline_range_floor_m
 from calib_core.detect.image.score import features, probability
 from calib_core.detect.image.votes import candidates_by_votes
@@ -342,18 +343,8 @@ def _detect_once(image_rgb: np.ndarray, cam: CameraModel, sphere_radius_m: float
     if not cands and (hint_uv_px is not None or background is not None):
         return _not_found(NO_OUTLINE, method, candidates=0)  # (without them, the later cues still look)
     fits = _refine_all(look, _in_order(cands, look.max_candidates), hint_uv_px is not None)
-    if hint_uv_px is None and background is None and not any(f.ok and f.score >= WEAK_FIT for _, f in fits):
-        # no clear round outline among the votes (none, or only ragged ones: clutter): region
-        # contrast (an open mesh, a low-contrast outline) as the second cue
-        more = _new_candidates(fits, look.contrast_candidates())
-        cands = cands + more
-        fits += _refine_all(look, _in_order(more, look.max_candidates), False)
-        if not any(f.ok and f.score >= WEAK_FIT for _, f in fits):
-            # third cue: a disc whose colour stands out from a textured surround (a red ball
-            # before red brick), where neither outline votes nor plain contrast put a candidate
-            more = _new_candidates(fits, look.disc_candidates())
-            cands = cands + more
-            fits += _refine_all(look, more[:DISC_CANDIDATES], False)  # best first, border or not
+    if hint_uv_px is None and background is None:
+        cands, fits = _more_cues(look, cands, fits)
     det = _verdict(look, fits, cands, method, hint_uv_px is not None)
     if det.found and is_clipped_spot(img, det.center_uv_px, det.radius_px):
         det = _host_of_highlight(look, det, method)
@@ -362,6 +353,35 @@ def _detect_once(image_rgb: np.ndarray, cam: CameraModel, sphere_radius_m: float
         det.extras["region_ms"] = round(1e3 * (t_region - t0), 2)
         det.extras["refined"] = len(fits)  # candidates fitted at full resolution
     return det
+
+
+def _clear(fits) -> bool:
+    return any(f.ok and f.score >= WEAK_FIT for _, f in fits)
+
+
+def _more_cues(look, cands, fits):
+    """The cues after the round-outline votes, each only while no clear outline is found."""
+    if _clear(fits):
+        return cands, fits
+    # no clear round outline among the votes (none, or only ragged ones: clutter): region
+    # contrast (an open mesh, a low-contrast outline) as the second cue
+    more = _new_candidates(fits, look.contrast_candidates())
+    cands = cands + more
+    fits = fits + _refine_all(look, _in_order(more, look.max_candidates), False)
+    if _clear(fits):
+        return cands, fits
+    # third cue: a disc whose colour stands out from a textured surround (a red ball
+    # before red brick), where neither outline votes nor plain contrast put a candidate
+    more = _new_candidates(fits, look.disc_candidates())
+    cands = cands + more
+    fits = fits + _refine_all(look, more[:DISC_CANDIDATES], False)  # best first, border or not
+    if _clear(fits):
+        return cands, fits
+    # fourth cue: a ball's print (pentagons, panels) made the small candidates: a cluster of them.
+    # A guess built from other candidates: it counts only when it gives a clear outline
+    more = _new_candidates(fits, enclosing_candidates(cands, look.r_bounds))
+    fourth = _refine_all(look, more, False)
+    return (cands + more, fits + fourth) if _clear(fourth) else (cands, fits)
 
 
 class _Look:
@@ -536,15 +556,10 @@ def _disputed_by(fits, f: CandidateFit) -> CandidateFit | None:
 
 
 def _blur_range_floor_m(f: CandidateFit, apparent_r_px: float, sphere_radius_m: float) -> float:
-    """The range's share of a blurred outline's systematic floor (m): the plateau scatter
-    (image_fit.outline_rms_limit_px beyond a sharp edge's) moves the whole outline in or out
-    together, so the apparent radius, and the range as range / radius, carry it; 0 for a sharp edge."""
+    """The range's share of a blurred outline's systematic floor (m), for a mostly seen outline
+    (:func:`calib_core.detect.image.blur.blur_range_floor_m`); 0 for a sharp edge."""
     width = f.extras.get("edge_width_px", np.nan) if f.support >= TIGHT_MIN_SUPPORT else np.nan
-    floor2 = outline_rms_limit_px(apparent_r_px, width) ** 2 - clean_rms_px(apparent_r_px) ** 2
-    if not floor2 > 0 or not apparent_r_px > 0:
-        return 0.0
-    range_m = sphere_radius_m / np.sin(f.fit.a_rad)
-    return float(range_m * np.sqrt(floor2) / apparent_r_px)
+    return blur_range_floor_m(sphere_radius_m / np.sin(f.fit.a_rad), apparent_r_px, width)
 
 
 def _detection(f: CandidateFit, sphere_radius_m: float, method: str, n_cands: int,

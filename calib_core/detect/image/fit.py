@@ -5,6 +5,9 @@ Pass 1 casts rays from the coarse centre and takes the outermost strong edge of 
 silhouette is the outermost). Pass 2 samples along the normals of the fitted silhouette, in a
 narrow band, and keeps the outermost edge there (the outline's envelope); the cone is refitted
 robustly, so the chain (a thin line attached at the top) and texture edges end up as outliers.
+When that envelope is not clean, pass 2 is also read from the few strongest edges of every
+normal in a wider band (the cone most of them agree on): a gore boundary just inside a beach
+ball's limb is the outermost edge only over a stretch, the limb is round all the way.
 """
 
 from __future__ import annotations
@@ -20,6 +23,9 @@ from calib_core.detect.image.cone import (ConeFit, centre_uv_and_cov, fit_cone, 
                                           silhouette_uv, silhouette_xy)
 from calib_core.detect.image.edges import (edge_peaks, edge_widths, gradient_magnitude, outward_normals,
                                            pick_edges, ray_directions, sample_profiles, smooth_roi)
+from calib_core.detect.image.blur import (BLUR_MAX_RADIUS_FRACTION, CLEAN_RMS_FRAC, CLEAN_RMS_PX,  # noqa: F401
+                                          SHARP_EDGE_WIDTH_PX, SMALL_RADIUS_PX, blur_floor_px2, clean_rms_px,
+                                          outline_rms_limit_px)
 from calib_core.detect.image.region import Candidate
 
 SMOOTH_SIGMA_PX = 1.0
@@ -36,43 +42,6 @@ SYS_FRACTION = 0.2
 # by a holder, a hand or low contrast), and an edge RMS a round outline of real (JPEG, blurred)
 # photographs reaches: sub-pixel edges of a sharp outline scatter ~0.3-0.7 px.
 MIN_SUPPORT = 0.5
-CLEAN_RMS_PX = 0.9
-CLEAN_RMS_FRAC = 0.012
-# Below SMALL_RADIUS_PX (the smallest sphere the detector is meant for) the floor shrinks with
-# the radius: 0.9 px on an 8 px circle is a tenth of it (a rounded icon, a screw head).
-SMALL_RADIUS_PX = 15.0
-
-
-def clean_rms_px(radius_px: float) -> float:
-    """Largest edge RMS (px) of a round outline of this apparent radius."""
-    return max(CLEAN_RMS_FRAC * radius_px, CLEAN_RMS_PX * min(1.0, radius_px / SMALL_RADIUS_PX))
-
-
-# A blurred outline (a ball moving during the exposure, out of focus) has a wide edge whose
-# gradient peak is a plateau rather than a point: the sub-pixel peak lands anywhere on it, so
-# the edge points scatter by the plateau width / sqrt(12) (a uniform spread) on top of what a
-# sharp edge gives. SHARP_EDGE_WIDTH_PX is the full width at half maximum of the gradient of a
-# sharp photograph's edge after the SMOOTH_SIGMA_PX smoothing: 2.355 sqrt(1.0^2 + 1.4^2) px,
-# i.e. an optics and JPEG blur of 1.4 px (the renders' sharp edges measure 2.7-2.9 px, so
-# they get no allowance); only the width beyond it widens the roundness limit.
-SHARP_EDGE_WIDTH_PX = 4.0
-BLUR_MAX_RADIUS_FRACTION = 0.25
-
-
-def outline_rms_limit_px(radius_px: float, edge_width_px: float) -> float:
-    """Largest edge RMS (px) of a round outline of this apparent radius whose edges have this
-    median width (FWHM of the gradient, px): :func:`clean_rms_px` and, in quadrature, the
-    scatter of a peak's position over the width beyond a sharp edge's. Not below
-    SMALL_RADIUS_PX (a small blob with a soft edge is as likely a smudge or a shadow as a
-    blurred ball), and the width counts up to BLUR_MAX_RADIUS_FRACTION of the radius (a ball
-    blurred over more than that is a streak, not an outline)."""
-    if radius_px < SMALL_RADIUS_PX or not np.isfinite(edge_width_px):
-        return clean_rms_px(radius_px)
-    w = min(float(edge_width_px), BLUR_MAX_RADIUS_FRACTION * radius_px)
-    excess2 = max(0.0, w ** 2 - SHARP_EDGE_WIDTH_PX ** 2)
-    return float(np.sqrt(clean_rms_px(radius_px) ** 2 + excess2 / 12.0))
-
-
 # Without a background image the "looks like the surroundings just outside" test compares the
 # band outside the outline with the colour a little farther out, which clutter varies by
 # itself: a looser limit there.
@@ -196,12 +165,25 @@ def refine_candidate(image: np.ndarray, cam: CameraModel, cand: Candidate, spher
     if box[2] - box[0] < 8 or box[3] - box[1] < 8:
         return CandidateFit(False, "no round outline")
     sig = _Signal(image, background, box)
-    fit1 = _first_pass(cam, sig, cand, R, band, a_range_rad, rng)
-    if not isinstance(fit1, ConeFit):
-        return CandidateFit(False, fit1)
+    starts = _first_pass(cam, sig, cand, R, band, a_range_rad, rng)
+    if isinstance(starts, str):
+        return CandidateFit(False, starts)
+    for fit1 in starts:
+        res = _grown(cam, sig, fit1, R, a_range_rad, rng, sphere_radius_m)
+        # a rescued start is searched for (like the several reading): it must grow into a
+        # credible outline (mostly seen, round, the surroundings just outside it); if not, the
+        # next start is tried, and without one it counts as no start (the caller then looks
+        # again near a candidate that found no outline, as it did before the rescue)
+        if not _rescued(fit1) or (res.ok and res.credible):
+            return res
+    return CandidateFit(False, "no round outline")
+
+
+def _grown(cam, sig: _Signal, fit1: ConeFit, R: float, a_range_rad, rng, sphere_radius_m: float) -> CandidateFit:
+    """Pass 2 from one pass-1 start, judged."""
     # ---- pass 2: along the normals of the fitted silhouette, narrow band (twice when the
     # first pass-2 fit is still rough: clutter drew pass 1 off the outline)
-    if fit1.reading == "several":
+    if fit1.reading in ("several",) + RESCUE_READINGS:
         rng = np.random.default_rng(len(fit1.inliers))  # (see _pass1_several: its own stream)
     p2 = _pass2(cam, sig, fit1, R, a_range_rad, rng)
     if p2 is not None and p2[0].sigma_px > clean_rms_px(R):
@@ -225,27 +207,39 @@ def _several_held(sig: _Signal, res: CandidateFit, R: float, outside_bad: float)
     refined: TIGHT_MIN_SUPPORT, TIGHT_RMS_FRACTION of the clean limit), the credible outside
     limit (0.2) unless it is the very clean, mostly visible outline _judge lets stand in
     clutter, and without a background one hue inside all along the outline."""
-    fit = res.fit
+    return _outline_held(sig, res.fit, res.support, res.extras.get("edge_width_px", np.nan),
+                         res.silhouette_px, R, outside_bad)
+
+
+def _outline_held(sig: _Signal, fit: ConeFit, support: float, width_px: float, sil: np.ndarray,
+                  R: float, outside_bad: float, need_step: bool = False) -> bool:
+    """The standard of :func:`_several_held` on a fit's parts: its share of the outline, its
+    edges' median width (px), its outline (K,2 px) and that outline's outside mismatch. With
+    ``need_step`` the inside's hue must also step across the outline on every arc counted
+    (:func:`_inside_colour_arcs` only; one hue all along is one arc)."""
     # (the tight standard relative to the roundness limit of the outline's edge width: a
     # blurred edge's midpoint scatters more than a sharp one's)
-    limit = outline_rms_limit_px(R, res.extras.get("edge_width_px", np.nan))
-    if res.support < TIGHT_MIN_SUPPORT or fit.sigma_px > TIGHT_RMS_FRACTION * limit:
+    limit = outline_rms_limit_px(R, width_px)
+    if support < TIGHT_MIN_SUPPORT or fit.sigma_px > TIGHT_RMS_FRACTION * limit:
         return False
-    very_clean = res.support >= 0.7 and fit.sigma_px <= 0.35 * clean_rms_px(R)
+    very_clean = support >= 0.7 and fit.sigma_px <= 0.35 * clean_rms_px(R)
     if outside_bad > 0.2 and not very_clean:
         return False
     # a circle picked from several edges per ray can run through unrelated things (a block's
     # corner, mortar lines): a sphere's inside has one hue all along its outline (shading
     # changes only the brightness)
     # (a painted ball: one hue per arc, between the few places where a gore meets the outline)
-    return sig.diff is not None or \
-        max(_inside_colour_agreement(sig, res.silhouette_px, R),
-            _inside_colour_arcs(sig, res.silhouette_px, R)) >= SEVERAL_MIN_INSIDE_AGREEMENT
+    if sig.diff is not None:
+        return True
+    arcs = _inside_colour_arcs(sig, sil, R)
+    return (arcs if need_step else max(arcs, _inside_colour_agreement(sig, sil, R))) >= SEVERAL_MIN_INSIDE_AGREEMENT
 
 
-def _first_pass(cam, sig: _Signal, cand: Candidate, R: float, band, a_range_rad, rng) -> ConeFit | str:
+def _first_pass(cam, sig: _Signal, cand: Candidate, R: float, band, a_range_rad, rng) -> list[ConeFit] | str:
     """Pass 1: rays from the coarse centre, outermost strong edge (or, without a background,
-    the strongest colour edge when that is rounder). The fit, or why there is none."""
+    the strongest colour edge when that is rounder). The starts for pass 2, in the order to
+    try them (more than one only with a rescued start, :data:`RESCUE_READINGS`), or why
+    there is none."""
     k1 = int(np.clip(2 * np.pi * cand.radius_px / 2.5, 48, 180))
     dirs = ray_directions(k1)
     r_dir = _polar_radius(cand, dirs)
@@ -263,29 +257,115 @@ def _first_pass(cam, sig: _Signal, cand: Candidate, R: float, band, a_range_rad,
     if seg_in.sum() < 12:
         return "no outline edges"
     fit1 = _pass1(cam, pts, dirs, t, g, seg_in, "outermost", a_range_rad, R, rng)
+    readings, arc, smoothed = [fit1], None, None
     good1 = fit1 is not None and fit1.inliers.sum() >= 0.75 * seg_in.sum() and fit1.sigma_px <= 1.0
     if cand.source != "background" and not good1:
         # without a background, clutter just outside the outline also makes edges: the
         # strongest colour edge per ray is the other reading; keep the rounder one
         gc = gradient_magnitude(sig.colour_profiles(pts, dirs, t), step)
         alt = _pass1(cam, pts, dirs, t, gc, seg_in, "strongest", a_range_rad, R, rng)
+        readings.append(alt)
         if alt is not None and (fit1 is None or _quality(alt) > _quality(fit1)):
             fit1 = alt
+        if not _pass1_usable(fit1, seg_in, R) and sig.diff is None:
+            # (a clean arc is tried first: a start from single edges is firmer than a circle
+            # picked among several per ray; the usable reading after it is the fallback)
+            arc = _pass1_arc(cam, sig, readings, seg_in, R)
         if not _pass1_usable(fit1, seg_in, R):
             alt = _pass1_several(cam, sig, pts, dirs, step, R, seg_in, a_range_rad)
             if alt is not None and (fit1 is None or _quality(alt) > _quality(fit1)):
                 fit1 = alt
-    if not _pass1_usable(fit1, seg_in, R):
-        # too little of the rays on it, or so ragged that the refinement, which narrows the
-        # band around this outline, cannot make it round (saves the cost of pass 2 on clutter)
-        return "no round outline"
-    return fit1
+        if not _pass1_usable(fit1, seg_in, R) and sig.diff is None:
+            smoothed = _pass1_smoothed(cam, sig, (pts, dirs, t, step, seg_in), a_range_rad, R)
+    # too little of the rays on a reading, or so ragged that the refinement, which narrows the
+    # band around its outline, cannot make it round: no start (saves pass 2 on clutter)
+    starts = [f for f in (arc, fit1 if _pass1_usable(fit1, seg_in, R) else None, smoothed) if f is not None]
+    return starts or "no round outline"
 
 
 def _pass1_usable(fit1: ConeFit | None, seg_in: np.ndarray, R: float) -> bool:
     """A pass-1 fit worth refining: on 40 % of the rays and not too ragged."""
     return (fit1 is not None and fit1.inliers.sum() >= 0.4 * seg_in.sum()
             and fit1.sigma_px <= max(PASS1_MAX_RMS_PX, PASS1_MAX_RMS_FRAC * R))
+
+
+# ---- pass-1 rescue, without a background: a start for a candidate none of the readings gave
+# one. The arc draws nothing (it is a reading's fit kept), the smoothed reading and the pass 2
+# after either draw from their own random stream: every other fit's draws stay as they were.
+# Pass 2 grows the start into the whole outline and is judged as usual.
+RESCUE_READINGS = ("arc", "smoothed")
+# a clean partial arc: on at least ARC_MIN_SHARE of the rays (half of the half-visible outline
+# the detector accepts: a backrest's or a contact shadow's edges take the outermost and the
+# strongest edge on the rest), as round as the tight refit's standard, with one hue just
+# inside it, and so well constrained that the outline it predicts on the unseen side lies
+# within pass 2's search band at ARC_BAND_SIGMAS standard deviations
+ARC_MIN_SHARE = 0.25
+ARC_BAND_SIGMAS = 3.0
+
+
+def _rescued(fit1: ConeFit | None) -> bool:
+    return fit1 is not None and fit1.reading in RESCUE_READINGS
+
+
+def _pass1_arc(cam, sig: _Signal, readings, seg_in: np.ndarray, R: float) -> ConeFit | None:
+    """The outermost or the strongest reading's fit, when too few rays are on it to be usable
+    but it is a clean partial arc (:func:`_arc_held`); before the several reading (a tight
+    arc of single edges is a firmer start than a circle picked among several per ray)."""
+    arcs = [f for f in readings if f is not None and _arc_held(cam, sig, f, seg_in, R)]
+    if not arcs:
+        return None
+    best = max(arcs, key=_quality)
+    best.reading = "arc"
+    return best
+
+
+def _arc_held(cam, sig: _Signal, fit: ConeFit, seg_in: np.ndarray, R: float) -> bool:
+    """A partial pass-1 arc worth growing (see ARC_MIN_SHARE): enough rays, tight, one surface
+    inside, and a prediction of the rest of the outline good to within pass 2's band."""
+    if fit.inliers.sum() < max(12, ARC_MIN_SHARE * seg_in.sum()) \
+            or fit.sigma_px > TIGHT_RMS_FRACTION * clean_rms_px(R):
+        return False
+    centre, cov = centre_uv_and_cov(cam, fit)
+    if not np.isfinite(centre).all() or not np.isfinite(cov).all():
+        return False
+    # the apparent radius moves with the half-angle as R / (sin a cos a)
+    r_sd = R * np.sqrt(max(float(fit.cov_params[2, 2]), 0.0)) / max(np.sin(fit.a_rad) * np.cos(fit.a_rad), 1e-6)
+    outline_sd = float(np.sqrt(np.linalg.eigvalsh(cov)[-1] + r_sd ** 2))
+    half = max(3.0, 3.0 * fit.sigma_px + 1.5, 0.02 * R)  # (pass 2's band, as in _pass2)
+    if ARC_BAND_SIGMAS * outline_sd > half:
+        return False
+    uv = fit.edge_uv_px[fit.inliers]
+    nrm = uv - centre[None, :]
+    nrm /= np.maximum(np.linalg.norm(nrm, axis=1, keepdims=True), 1e-9)
+    gap = max(3.0, 0.04 * R)
+    c_in = sample_profiles(sig.img, sig.origin, uv, nrm, -gap - np.arange(3.0)).mean(axis=1) + 1.0
+    hues = c_in / np.linalg.norm(c_in, axis=1, keepdims=True)
+    return _within(hues) >= SEVERAL_MIN_INSIDE_AGREEMENT * len(hues)
+
+
+def _pass1_smoothed(cam, sig: _Signal, geo, a_range_rad, R: float) -> ConeFit | None:
+    """Pass 1 on profiles smoothed along the rays by BLUR_SCALES_PX (as pass 2's smoothed
+    reading): a motion-smeared outline is a ramp whose outermost and strongest raw gradient
+    peaks are the sharp texture seen through it, scattered over its width; the smoothed
+    gradient peaks at the ramp's middle. Not on a small blob, nor wider than a quarter radius
+    (as :func:`outline_rms_limit_px`); usable as any pass-1 fit."""
+    pts, dirs, t, step, seg_in = geo
+    if R < SMALL_RADIUS_PX:
+        return None
+    prof = (sig.profiles(pts, dirs, t), sig.colour_profiles(pts, dirs, t))
+    for s in BLUR_SCALES_PX:
+        if 2.3548 * s > BLUR_MAX_RADIUS_FRACTION * R:
+            break
+        best = None
+        for rule, p in zip(("outermost", "strongest"), prof):
+            g = gradient_magnitude(gaussian_filter1d(p, s / step, axis=1, mode="nearest"), step)
+            fit = _pass1(cam, pts, dirs, t, g, seg_in, rule, a_range_rad, R, np.random.default_rng(len(t)))
+            if _pass1_usable(fit, seg_in, R) and (best is None or _quality(fit) > _quality(best)):
+                best = fit
+        if best is not None:
+            best.reading = "smoothed"
+            return best
+    return None
 
 
 def _fitted(cam, sig: _Signal, p2, R: float, sphere_radius_m: float) -> tuple[CandidateFit, float]:
@@ -310,7 +390,7 @@ def _fitted(cam, sig: _Signal, p2, R: float, sphere_radius_m: float) -> tuple[Ca
     # a blurred outline's peak position on the plateau is the same smear for neighbouring
     # normals: it does not average out over the outline, a systematic floor of its own
     # (the allowance of outline_rms_limit_px, zero for a sharp edge)
-    cov = cov + (limit ** 2 - clean_rms_px(R) ** 2) * np.eye(2)
+    cov = cov + blur_floor_px2(R, width if support >= TIGHT_MIN_SUPPORT else np.nan) * np.eye(2)
     res = CandidateFit(True, "", fit, centre, cov, sil_f, support, score, contrast,
                        float(sphere_radius_m / np.sin(fit.a_rad)))
     res.extras = {"edge_points": int(ok2.sum()), "inliers": int(fit.inliers.sum()),
@@ -373,6 +453,10 @@ def _pass2(cam, sig, fit1: ConeFit, R: float, a_range_rad, rng):
     geo = (sil, sil_xy, nrm, k2, perim)
     half = max(3.0, 3.0 * fit1.sigma_px + 1.5, 0.02 * R)
     best = _pass2_reading(cam, sig, fit1, R, a_range_rad, rng, geo, half, 0.0)
+    if best is None or best[0].sigma_px > 0.5 * clean_rms_px(R) or best[0].inliers.mean() < 0.9:
+        alt = _pass2_several(cam, sig, fit1, R, a_range_rad, geo, max(half, PASS2_SEVERAL_HALF_FRAC * R))
+        if alt is not None and _searched_held(cam, sig, alt, R) and (best is None or _quality(alt[0]) > _quality(best[0])):
+            best = alt
     for s in BLUR_SCALES_PX:
         if best is not None and best[0].sigma_px <= outline_rms_limit_px(R, _median_width(best)):
             break
@@ -382,6 +466,72 @@ def _pass2(cam, sig, fit1: ConeFit, R: float, a_range_rad, rng):
         if alt is not None and _smoothed_held(alt, R) and (best is None or _quality(alt[0]) > _quality(best[0])):
             best = alt
     return best
+
+
+# the several-edges reading of pass 2 looks this far (x the coarse radius) either side of the
+# pass-1 outline: 3 x pass 1's inlier band (0.04 R), plus room for the peak's neighbours
+PASS2_SEVERAL_HALF_FRAC = 0.15
+
+
+def _pass2_several(cam, sig: _Signal, fit1: ConeFit, R: float, a_range_rad, geo, half: float):
+    """Pass 2 read from the few strongest edges of every normal in a wider band, the outline
+    being the cone most of them agree on, then one edge per normal (the nearest to it): where
+    pass 1 is a few px off on one side and a strong edge just inside the ball, nearly parallel
+    to its limb (a beach ball's gore boundary, a seam), is the outermost and strongest edge in
+    the narrow band there, the ball's own outline lying just beyond it. A gore boundary runs
+    along the limb over a stretch only; the limb is round all the way. Same return as
+    :func:`_pass2_reading` (fit, used mask, strengths, K, edge widths); its own random stream."""
+    sil, sil_xy, nrm, k2, perim = geo
+    t2 = np.arange(-half, half + 0.25, 0.5)
+    inside_img = cam.in_image(sil, margin_px=1.0) & sig.covers(sil, half + 1.0)
+    g2 = gradient_magnitude(sig.colour_profiles(sil, nrm, t2), 0.5)
+    if not inside_img.any():
+        return None
+    thr = max(0.3 * float(np.median(g2.max(axis=1)[inside_img])), EDGE_NOISE_FACTOR * sig.noise)
+    te = edge_peaks(t2, g2, thr, SEVERAL_PEAKS)
+    ray = np.broadcast_to(np.arange(k2)[:, None], te.shape)
+    ok = np.isfinite(te) & inside_img[:, None]
+    ray, te = ray[ok], te[ok]
+    if len(np.unique(ray)) < 12:
+        return None
+    xy = normalize_near(cam, sil[ray] + te[:, None] * nrm[ray], sil_xy[ray], iterations=3)
+    band = max(1.0, 0.01 * R)
+    rng = np.random.default_rng(k2)
+    fit = fit_cone(cam, xy, a_range_rad, inlier_px=band, rng=rng, max_iter=6, n_hyp=SEVERAL_HYPOTHESES)
+    if fit is None:
+        return None
+    order = np.lexsort((np.abs(fit.residuals_px), ray))
+    first = order[np.r_[True, ray[order][1:] != ray[order][:-1]]]
+    one = np.full(k2, np.nan)
+    one[ray[first]] = te[first]
+    ok2 = np.isfinite(one)
+    fit = _pass2_fit(cam, xy[first], fit, R, a_range_rad, rng, k2, perim)
+    if fit is None:
+        return None
+    fit.reading = "several"
+    _, s2 = pick_edges(t2, g2, "nearest", thr, np.where(ok2, one, 0.0))
+    return fit, ok2, s2, k2, edge_widths(t2, g2, one)[ok2]
+
+
+def _searched_held(cam, sig: _Signal, p2, R: float) -> bool:
+    """A pass-2 outline searched for among several edges per normal, held like the several
+    reading of pass 1 (:func:`_outline_held`: the tight refit's standard, the outside looks
+    like the surroundings, one hue inside per long arc with a colour step across the outline
+    on each) and its edge width a smear's at most
+    (as :func:`_smoothed_held`)."""
+    fit, _, _, k2, _ = p2
+    width = _median_width(p2)
+    if not width <= BLUR_MAX_RADIUS_FRACTION * R:
+        return False
+    sil = silhouette_uv(cam, fit.w, fit.a_rad, n=k2)
+    visible = cam.in_image(sil, margin_px=0.05 * R + 8)
+    if visible.sum() < 8 or not np.isfinite(sil).all():
+        return False
+    outside_bad = _outside_mismatch(sig, sil[visible], outward_normals(sil, sil.mean(axis=0))[visible], R)
+    # (a colour step across the outline all round: this reading looks farther from pass 1's
+    # outline, among more edges, than any other; a small round patch in a block's corner had
+    # one hue inside but the same colours outside)
+    return _outline_held(sig, fit, float(fit.inliers.sum()) / k2, width, sil, R, outside_bad, need_step=True)
 
 
 def _smoothed_held(p2, R: float) -> bool:
@@ -479,8 +629,11 @@ def _pass1(cam, pts, dirs, t, g, seg_in, rule, a_range_rad, R, rng) -> ConeFit |
     if ok.sum() < 12:
         return None
     uv1 = pts[ok] + t1[ok, None] * dirs[ok]
-    return fit_cone(cam, normalize_near(cam, uv1), a_range_rad, inlier_px=max(1.5, 0.04 * R), rng=rng,
-                    max_iter=6)
+    fit = fit_cone(cam, normalize_near(cam, uv1), a_range_rad, inlier_px=max(1.5, 0.04 * R), rng=rng,
+                   max_iter=6)
+    if fit is not None:
+        fit.edge_uv_px = uv1
+    return fit
 
 
 # the "several" reading: this many strongest edges per ray, down to this share of the typical
@@ -537,10 +690,19 @@ HUE_STEP_LAG = 2
 
 def _inside_hues(sig: _Signal, sil: np.ndarray, R: float) -> np.ndarray:
     """(K,3) unit RGB directions just inside the outline (shading scales a colour, does not turn it)."""
-    gap = max(3.0, 0.04 * R)
-    c_in = sample_profiles(sig.img, sig.origin, sil, outward_normals(sil, sil.mean(axis=0)),
-                           -gap - np.arange(3.0)).mean(axis=1) + 1.0
+    c_in, _ = _colours_across(sig, sil, R)
+    c_in = c_in + 1.0
     return c_in / np.linalg.norm(c_in, axis=1, keepdims=True)
+
+
+def _colours_across(sig: _Signal, sil: np.ndarray, R: float) -> tuple[np.ndarray, np.ndarray]:
+    """(K,3) mean colours just inside and just outside the outline (3 samples each, a gap of
+    max(3 px, 4 % of the radius) from it: the edge's own blur left out)."""
+    gap = max(3.0, 0.04 * R)
+    nrm = outward_normals(sil, sil.mean(axis=0))
+    c_in = sample_profiles(sig.img, sig.origin, sil, nrm, -gap - np.arange(3.0)).mean(axis=1)
+    c_out = sample_profiles(sig.img, sig.origin, sil, nrm, gap + np.arange(3.0)).mean(axis=1)
+    return c_in, c_out
 
 
 def _within(d: np.ndarray) -> int:
@@ -557,25 +719,66 @@ def _inside_colour_agreement(sig: _Signal, sil: np.ndarray, R: float) -> float:
     return _within(d) / len(d)
 
 
-def _inside_colour_arcs(sig: _Signal, sil: np.ndarray, R: float) -> float:
-    """Share of the outline in long arcs of one hue each: a painted ball (beach-ball gores,
-    panels) changes hue only where a panel's boundary meets the outline, a few times around it;
-    a circle run through texture or several objects changes it often. The outline is split
-    where the hue turns by more than HUE_TOLERANCE_RAD over HUE_STEP_LAG points; arcs of at
-    least SEVERAL_MIN_ARC_SHARE of it count with their points within tolerance of their own
-    median hue."""
-    d = _inside_hues(sig, sil, R)
+def _hue_arcs(d: np.ndarray) -> list[np.ndarray]:
+    """Index arrays (into the outline's K points) of the arcs of one hue at least
+    SEVERAL_MIN_ARC_SHARE of the outline long: the outline split where the hue ``d`` (K,3 unit
+    directions) turns by more than HUE_TOLERANCE_RAD over HUE_STEP_LAG points."""
     k = len(d)
     turn = np.arccos(np.clip((d * np.roll(d, -HUE_STEP_LAG, axis=0)).sum(axis=1), -1.0, 1.0)) > HUE_TOLERANCE_RAD
     if not turn.any():
-        return _within(d) / k
+        return [np.arange(k)]
     start = int(np.flatnonzero(turn)[0])
     steady = np.roll(~turn, -start)  # (begins on a turn: no arc wraps around the end)
     edges = np.flatnonzero(np.diff(np.r_[0, steady.astype(np.int8), 0]))
-    d = np.roll(d, -start, axis=0)
-    good = sum(_within(d[a:b]) for a, b in zip(edges[::2], edges[1::2])
-               if b - a >= max(4, SEVERAL_MIN_ARC_SHARE * k))
-    return good / k
+    return [(start + np.arange(a, b)) % k for a, b in zip(edges[::2], edges[1::2])
+            if b - a >= max(4, SEVERAL_MIN_ARC_SHARE * k)]
+
+
+# a colour step across the outline: at least half of an arc's points must step by more than
+# the colour noise alone gives at a 5 % false-alarm rate per point. The noise of one in-out
+# difference is measured locally, on the arc itself: the differences between points of one
+# side the same distance apart along the arc as the inside and outside samples are across it.
+# Taken as Gaussian along one colour direction (texture is mostly luminance; the conservative
+# case): the two-sided 5 % point is 1.96 sigma, the median of |difference| 0.6745 sigma. An
+# arc passes by chance only if half of its points do: for the ~n/lag >= 4 independent ones of
+# the shortest arc, P(Binomial(4, 0.05) >= 2) = 1.4 %, far less for longer arcs.
+STEP_FALSE_ALARM_Z = 1.96
+MEDIAN_ABS_NORMAL = 0.6745
+
+
+def _arc_has_step(c_in: np.ndarray, c_out: np.ndarray, lag: int) -> bool:
+    """Whether an arc's inside and outside colours (n,3 each, in order along the arc) differ
+    by a real step: the median in-out distance beyond the 5 % point of the same-side
+    differences ``lag`` points apart (the noise and texture of each side, at the in-out
+    separation). A circle cut through one textured surface (brick, boards) has about the same
+    colours on both sides; a ball's painted gore against its surroundings does not."""
+    lag = int(np.clip(lag, 1, max(1, len(c_in) // 3)))
+    same = np.r_[np.linalg.norm(c_in[lag:] - c_in[:-lag], axis=1),
+                 np.linalg.norm(c_out[lag:] - c_out[:-lag], axis=1)]
+    step = float(np.median(np.linalg.norm(c_in - c_out, axis=1)))
+    return step > STEP_FALSE_ALARM_Z / MEDIAN_ABS_NORMAL * float(np.median(same))
+
+
+def _step_lag(sil: np.ndarray, R: float) -> int:
+    """Points along the outline as far apart as the inside and outside samples of
+    :func:`_colours_across` are across it."""
+    spacing = float(np.mean(np.linalg.norm(np.diff(sil, axis=0), axis=1)))
+    return max(1, int(round(2.0 * (max(3.0, 0.04 * R) + 1.0) / max(spacing, 1e-6))))
+
+
+def _inside_colour_arcs(sig: _Signal, sil: np.ndarray, R: float) -> float:
+    """Share of the outline in long arcs of one hue each: a painted ball (beach-ball gores,
+    panels) changes hue only where a panel's boundary meets the outline, a few times around it;
+    a circle run through texture or several objects changes it often. Arcs (:func:`_hue_arcs`)
+    count with their points within tolerance of their own median hue, and only where the
+    colour steps across the outline (:func:`_arc_has_step`): a circle straddling two
+    textured surfaces (brick above, boards below) has two long arcs of one hue, but each lies
+    on one surface, whose colour goes on outside it."""
+    c_in, c_out = _colours_across(sig, sil, R)
+    d = (c_in + 1.0) / np.linalg.norm(c_in + 1.0, axis=1, keepdims=True)
+    lag = _step_lag(sil, R)
+    good = sum(_within(d[ix]) for ix in _hue_arcs(d) if _arc_has_step(c_in[ix], c_out[ix], lag))
+    return good / len(d)
 
 
 def _outside_mismatch(sig: _Signal, sil: np.ndarray, nrm: np.ndarray, R: float) -> float:

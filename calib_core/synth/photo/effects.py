@@ -27,6 +27,14 @@ renderer is unchanged (byte-identical sessions). The model, per effect:
   centre), a cos^4-like fall-off reaching ``1 - vignette`` in the corners.
 - Auto-exposure / white balance: radiance times ``exposure * wb_gains`` (per channel) before
   the 8-bit step; the case generator meters the exposure on the frame, as a camera does.
+- Sports-ball prints (``BallLook.pattern``: football, basketball, tennis, volleyball; model in
+  :mod:`calib_core.synth.photo.ball_patterns`) and a felt's fuzz (``sheen``): the ball's radiance
+  gains ``sheen * (1 - |n . v|)^2 * albedo * ambient`` (fibres catching light at grazing view).
+- Underwater light (``caustic``, ``spot_*``; with ``Water.attenuation_rgb`` and
+  ``Water.spot_veil``): caustics on the key light and a dive light, model in
+  :mod:`calib_core.synth.photo.water`.
+- Camera artefacts (``defocus_px``, ``shake_px``, ``jpeg_quality``): applied after the bloom and
+  after the 8-bit step, model in :mod:`calib_core.synth.photo.artefacts`.
 - Motion blur of a carried ball (:func:`motion_composite`): the ball's radiance and its
   coverage are convolved with a centred line kernel ``motion_px`` (dx, dy) and composited over
   a render of the scene without the ball; the true centre is the ball's mid-exposure position.
@@ -40,6 +48,9 @@ from dataclasses import dataclass, field
 
 import cv2
 import numpy as np
+
+from calib_core.synth.photo import ball_patterns
+from calib_core.synth.photo import water as photo_water
 
 WHITE = (0.92, 0.92, 0.90)
 
@@ -62,6 +73,10 @@ class BallLook:
     logo_deg: float = 18.0
     valve_dir: tuple | None = None
     valve_deg: float = 3.0
+    pattern: str = ""  # a sports ball's print (calib_core.synth.photo.ball_patterns), "" = none
+    pattern_w: float = 0.02  # its seam half width (rad on the ball)
+    pattern_rgb: tuple = ()  # its panel colours where it has several (volleyball)
+    sheen: float = 0.0  # felt fuzz: grazing-angle brightening (tennis ball)
 
 
 @dataclass(frozen=True)
@@ -78,6 +93,16 @@ class Photo:
     wb_gains: tuple = (1.0, 1.0, 1.0)
     bloom_px: float = 0.0
     bloom_gain: float = 0.6
+    caustic: float = 0.0  # strength of the caustic network on the key light (0 = none)
+    caustic_scale_m: float = 0.3
+    caustic_seed: int = 0
+    spot_gain: float = 0.0  # a dive light's irradiance at 1 m on its axis (0 = none)
+    spot_pos: tuple = (0.0, 0.0, 0.0)  # world
+    spot_dir: tuple = (1.0, 0.0, 0.0)  # world, unit
+    spot_power: float = 10.0  # cos^power fall-off off the axis
+    defocus_px: float = 0.0  # radius of the defocus disc (0 = in focus)
+    shake_px: tuple = ()  # (dx, dy) of the whole frame during the exposure ("" = still)
+    jpeg_quality: int = 0  # JPEG round trip at this quality (0 = none)
 
 
 def _unit(v) -> np.ndarray:
@@ -137,6 +162,10 @@ def marking_albedo(look: BallLook, p: np.ndarray, albedo: np.ndarray) -> np.ndar
     if look.valve_dir is not None:
         valve = q @ _unit(look.valve_dir) > np.cos(np.deg2rad(look.valve_deg))
         out[valve] = np.asarray(WHITE) * 0.35
+    if look.pattern:
+        qb = np.column_stack([q @ e1, q @ e2, q @ a])
+        qb /= np.maximum(np.linalg.norm(qb, axis=1, keepdims=True), 1e-12)
+        out = ball_patterns.pattern_albedo(look.pattern, qb, out, look.pattern_w, look.pattern_rgb)
     return out
 
 
@@ -160,9 +189,15 @@ def shade_lit(photo: Photo, alb, p, n, view_dirs, is_ball, ambient, diffuse, lig
     key = _unit(photo.key_dir)
     vis = np.where(is_ball, 1.0, key_visibility(photo, p))
     amb = np.where(is_ball, 1.0, ambient_occlusion(photo, p, n))
-    lam = ambient * amb + diffuse * np.clip(n @ key, 0, None) * vis
+    direct = diffuse * np.clip(n @ key, 0, None) * vis
+    if photo.caustic > 0:
+        direct = direct * photo_water.caustic_factor(photo, p)
+    lam = ambient * amb + direct
     light = np.asarray(light_rgb, float)[None, :]
     L = alb * lam[:, None] * light
+    if photo.ball.sheen > 0 and is_ball.any():
+        grazing = 1.0 - np.abs(np.einsum("ij,ij->i", n[is_ball], view_dirs[is_ball]))
+        L[is_ball] += photo.ball.sheen * (grazing ** 2)[:, None] * alb[is_ball] * light * ambient
     if photo.ball.ks > 0 and is_ball.any():
         h = key[None, :] - view_dirs[is_ball]
         h /= np.linalg.norm(h, axis=1, keepdims=True)
