@@ -39,7 +39,7 @@ def stereo_link(session, ref: str, cam: str):
     transforms (:func:`calib_core.stereo.chain.chained_stereo`): stated for the pair (via None),
     else chained through the cameras ``via`` names ("cam3", or "cam3, cam4"); ``assumed`` when
     any link's covariance is the assumed default. None when no chain ties the two."""
-    got = chained_stereo(session.stereo, lambda key: key_stereo_cov(session, key)[0], ref, cam)
+    got = chained_stereo(session.stereo, lambda key: key_stereo_cov(session, key)[0], ref, cam, list(session.cameras))
     if got is None:
         return None
     T, cov, path = got
