@@ -383,7 +383,7 @@ def _stereo_refusals(data: SessionData, detections: dict, only: set) -> dict:
 # calib_core.detect.image.predicted stands between brick and a "sphere"), at least this many
 PREDICTION_MIN_SUPPORT = 4
 # ... and whose ranges agree with the images' ranges (from the apparent size) to this RMS: the
-# look takes the predicted size as known to a few per cent (image_predicted.PRIOR_REL_SIGMA); with
+# look takes the predicted size as known to a few per cent (image.predicted.PRIOR_REL_SIGMA); with
 # a size 8 % off it finds some balls 3-4 px off (bench_predicted_look.py)
 PREDICTION_MAX_RANGE_RMS = 0.04
 

@@ -3,12 +3,12 @@
 Main entry: :func:`detect_sphere_in_image`. Steps:
 
 1. coarse candidates in a downscaled image: difference to a background model when there is
-   one (:mod:`.image_region`), else round-outline votes (:mod:`.image_votes`), then, when those
-   give no clean outline, a colour centre-surround contrast (:mod:`.image_region`) and discs
-   whose colour stands out from a textured surround (:mod:`.image_discs`); sizes bounded by
+   one (:mod:`.region`), else round-outline votes (:mod:`.votes`), then, when those
+   give no clean outline, a colour centre-surround contrast (:mod:`.region`) and discs
+   whose colour stands out from a textured surround (:mod:`.discs`); sizes bounded by
    the intrinsics, the known radius and plausible ranges;
 2. per candidate, full-resolution sub-pixel silhouette edges and a robust fit of the sphere's
-   silhouette cone in undistorted normalised coordinates (:mod:`.image_fit`, :mod:`.image_cone`);
+   silhouette cone in undistorted normalised coordinates (:mod:`.fit`, :mod:`.cone`);
    the sphere centre's perspective projection follows exactly from the cone axis (then the lens
    distortion gives raw pixels), and the known radius gives the range;
 3. a verdict: one good candidate -> found; none -> the reason ("no round outline" / "sphere cut by the image
@@ -427,7 +427,7 @@ class _Look:
 
 def _host_of_highlight(look, det: ImageDetection, method: str) -> ImageDetection:
     """The ball carrying a clipped highlight that was taken for the sphere
-    (:mod:`.image_highlight`); the highlight's own detection when no ball outline is found
+    (:mod:`.highlight`); the highlight's own detection when no ball outline is found
     around it (a small white ball overexposed is a clipped disc too)."""
     hosts = host_candidates(det.center_uv_px, det.radius_px, look.img.shape)
     fits = [(c, look.refine(c)) for c in hosts]  # all (the halo's outline must not stop the search)
@@ -557,7 +557,7 @@ def _disputed_by(fits, f: CandidateFit) -> CandidateFit | None:
 
 def _blur_range_floor_m(f: CandidateFit, apparent_r_px: float, sphere_radius_m: float) -> float:
     """The range's share of a blurred outline's systematic floor (m): the plateau scatter
-    (image_fit.outline_rms_limit_px beyond a sharp edge's) moves the whole outline in or out
+    (fit.outline_rms_limit_px beyond a sharp edge's) moves the whole outline in or out
     together, so the apparent radius, and the range as range / radius, carry it; 0 for a sharp edge."""
     width = f.extras.get("edge_width_px", np.nan) if f.support >= TIGHT_MIN_SUPPORT else np.nan
     floor2 = outline_rms_limit_px(apparent_r_px, width) ** 2 - clean_rms_px(apparent_r_px) ** 2
