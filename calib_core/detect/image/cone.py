@@ -45,6 +45,7 @@ class ConeFit:
     cov_params: np.ndarray
     basis: np.ndarray
     reading: str = ""  # which edges it was fitted to, when a caller records it
+    edge_uv_px: np.ndarray | None = None  # (N,2) the edge points fitted, when a caller records them
 
     @property
     def inlier_fraction(self) -> float:

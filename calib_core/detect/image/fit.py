@@ -199,12 +199,25 @@ def refine_candidate(image: np.ndarray, cam: CameraModel, cand: Candidate, spher
     if box[2] - box[0] < 8 or box[3] - box[1] < 8:
         return CandidateFit(False, "no round outline")
     sig = _Signal(image, background, box)
-    fit1 = _first_pass(cam, sig, cand, R, band, a_range_rad, rng)
-    if not isinstance(fit1, ConeFit):
-        return CandidateFit(False, fit1)
+    starts = _first_pass(cam, sig, cand, R, band, a_range_rad, rng)
+    if isinstance(starts, str):
+        return CandidateFit(False, starts)
+    for fit1 in starts:
+        res = _grown(cam, sig, fit1, R, a_range_rad, rng, sphere_radius_m)
+        # a rescued start is searched for (like the several reading): it must grow into a
+        # credible outline (mostly seen, round, the surroundings just outside it); if not, the
+        # next start is tried, and without one it counts as no start (the caller then looks
+        # again near a candidate that found no outline, as it did before the rescue)
+        if not _rescued(fit1) or (res.ok and res.credible):
+            return res
+    return CandidateFit(False, "no round outline")
+
+
+def _grown(cam, sig: _Signal, fit1: ConeFit, R: float, a_range_rad, rng, sphere_radius_m: float) -> CandidateFit:
+    """Pass 2 from one pass-1 start, judged."""
     # ---- pass 2: along the normals of the fitted silhouette, narrow band (twice when the
     # first pass-2 fit is still rough: clutter drew pass 1 off the outline)
-    if fit1.reading == "several":
+    if fit1.reading in ("several",) + RESCUE_READINGS:
         rng = np.random.default_rng(len(fit1.inliers))  # (see _pass1_several: its own stream)
     p2 = _pass2(cam, sig, fit1, R, a_range_rad, rng)
     if p2 is not None and p2[0].sigma_px > clean_rms_px(R):
@@ -256,9 +269,11 @@ def _outline_held(sig: _Signal, fit: ConeFit, support: float, width_px: float, s
     return (arcs if need_step else max(arcs, _inside_colour_agreement(sig, sil, R))) >= SEVERAL_MIN_INSIDE_AGREEMENT
 
 
-def _first_pass(cam, sig: _Signal, cand: Candidate, R: float, band, a_range_rad, rng) -> ConeFit | str:
+def _first_pass(cam, sig: _Signal, cand: Candidate, R: float, band, a_range_rad, rng) -> list[ConeFit] | str:
     """Pass 1: rays from the coarse centre, outermost strong edge (or, without a background,
-    the strongest colour edge when that is rounder). The fit, or why there is none."""
+    the strongest colour edge when that is rounder). The starts for pass 2, in the order to
+    try them (more than one only with a rescued start, :data:`RESCUE_READINGS`), or why
+    there is none."""
     k1 = int(np.clip(2 * np.pi * cand.radius_px / 2.5, 48, 180))
     dirs = ray_directions(k1)
     r_dir = _polar_radius(cand, dirs)
@@ -276,29 +291,115 @@ def _first_pass(cam, sig: _Signal, cand: Candidate, R: float, band, a_range_rad,
     if seg_in.sum() < 12:
         return "no outline edges"
     fit1 = _pass1(cam, pts, dirs, t, g, seg_in, "outermost", a_range_rad, R, rng)
+    readings, arc, smoothed = [fit1], None, None
     good1 = fit1 is not None and fit1.inliers.sum() >= 0.75 * seg_in.sum() and fit1.sigma_px <= 1.0
     if cand.source != "background" and not good1:
         # without a background, clutter just outside the outline also makes edges: the
         # strongest colour edge per ray is the other reading; keep the rounder one
         gc = gradient_magnitude(sig.colour_profiles(pts, dirs, t), step)
         alt = _pass1(cam, pts, dirs, t, gc, seg_in, "strongest", a_range_rad, R, rng)
+        readings.append(alt)
         if alt is not None and (fit1 is None or _quality(alt) > _quality(fit1)):
             fit1 = alt
+        if not _pass1_usable(fit1, seg_in, R) and sig.diff is None:
+            # (a clean arc is tried first: a start from single edges is firmer than a circle
+            # picked among several per ray; the usable reading after it is the fallback)
+            arc = _pass1_arc(cam, sig, readings, seg_in, R)
         if not _pass1_usable(fit1, seg_in, R):
             alt = _pass1_several(cam, sig, pts, dirs, step, R, seg_in, a_range_rad)
             if alt is not None and (fit1 is None or _quality(alt) > _quality(fit1)):
                 fit1 = alt
-    if not _pass1_usable(fit1, seg_in, R):
-        # too little of the rays on it, or so ragged that the refinement, which narrows the
-        # band around this outline, cannot make it round (saves the cost of pass 2 on clutter)
-        return "no round outline"
-    return fit1
+        if not _pass1_usable(fit1, seg_in, R) and sig.diff is None:
+            smoothed = _pass1_smoothed(cam, sig, (pts, dirs, t, step, seg_in), a_range_rad, R)
+    # too little of the rays on a reading, or so ragged that the refinement, which narrows the
+    # band around its outline, cannot make it round: no start (saves pass 2 on clutter)
+    starts = [f for f in (arc, fit1 if _pass1_usable(fit1, seg_in, R) else None, smoothed) if f is not None]
+    return starts or "no round outline"
 
 
 def _pass1_usable(fit1: ConeFit | None, seg_in: np.ndarray, R: float) -> bool:
     """A pass-1 fit worth refining: on 40 % of the rays and not too ragged."""
     return (fit1 is not None and fit1.inliers.sum() >= 0.4 * seg_in.sum()
             and fit1.sigma_px <= max(PASS1_MAX_RMS_PX, PASS1_MAX_RMS_FRAC * R))
+
+
+# ---- pass-1 rescue, without a background: a start for a candidate none of the readings gave
+# one. The arc draws nothing (it is a reading's fit kept), the smoothed reading and the pass 2
+# after either draw from their own random stream: every other fit's draws stay as they were.
+# Pass 2 grows the start into the whole outline and is judged as usual.
+RESCUE_READINGS = ("arc", "smoothed")
+# a clean partial arc: on at least ARC_MIN_SHARE of the rays (half of the half-visible outline
+# the detector accepts: a backrest's or a contact shadow's edges take the outermost and the
+# strongest edge on the rest), as round as the tight refit's standard, with one hue just
+# inside it, and so well constrained that the outline it predicts on the unseen side lies
+# within pass 2's search band at ARC_BAND_SIGMAS standard deviations
+ARC_MIN_SHARE = 0.25
+ARC_BAND_SIGMAS = 3.0
+
+
+def _rescued(fit1: ConeFit | None) -> bool:
+    return fit1 is not None and fit1.reading in RESCUE_READINGS
+
+
+def _pass1_arc(cam, sig: _Signal, readings, seg_in: np.ndarray, R: float) -> ConeFit | None:
+    """The outermost or the strongest reading's fit, when too few rays are on it to be usable
+    but it is a clean partial arc (:func:`_arc_held`); before the several reading (a tight
+    arc of single edges is a firmer start than a circle picked among several per ray)."""
+    arcs = [f for f in readings if f is not None and _arc_held(cam, sig, f, seg_in, R)]
+    if not arcs:
+        return None
+    best = max(arcs, key=_quality)
+    best.reading = "arc"
+    return best
+
+
+def _arc_held(cam, sig: _Signal, fit: ConeFit, seg_in: np.ndarray, R: float) -> bool:
+    """A partial pass-1 arc worth growing (see ARC_MIN_SHARE): enough rays, tight, one surface
+    inside, and a prediction of the rest of the outline good to within pass 2's band."""
+    if fit.inliers.sum() < max(12, ARC_MIN_SHARE * seg_in.sum()) \
+            or fit.sigma_px > TIGHT_RMS_FRACTION * clean_rms_px(R):
+        return False
+    centre, cov = centre_uv_and_cov(cam, fit)
+    if not np.isfinite(centre).all() or not np.isfinite(cov).all():
+        return False
+    # the apparent radius moves with the half-angle as R / (sin a cos a)
+    r_sd = R * np.sqrt(max(float(fit.cov_params[2, 2]), 0.0)) / max(np.sin(fit.a_rad) * np.cos(fit.a_rad), 1e-6)
+    outline_sd = float(np.sqrt(np.linalg.eigvalsh(cov)[-1] + r_sd ** 2))
+    half = max(3.0, 3.0 * fit.sigma_px + 1.5, 0.02 * R)  # (pass 2's band, as in _pass2)
+    if ARC_BAND_SIGMAS * outline_sd > half:
+        return False
+    uv = fit.edge_uv_px[fit.inliers]
+    nrm = uv - centre[None, :]
+    nrm /= np.maximum(np.linalg.norm(nrm, axis=1, keepdims=True), 1e-9)
+    gap = max(3.0, 0.04 * R)
+    c_in = sample_profiles(sig.img, sig.origin, uv, nrm, -gap - np.arange(3.0)).mean(axis=1) + 1.0
+    hues = c_in / np.linalg.norm(c_in, axis=1, keepdims=True)
+    return _within(hues) >= SEVERAL_MIN_INSIDE_AGREEMENT * len(hues)
+
+
+def _pass1_smoothed(cam, sig: _Signal, geo, a_range_rad, R: float) -> ConeFit | None:
+    """Pass 1 on profiles smoothed along the rays by BLUR_SCALES_PX (as pass 2's smoothed
+    reading): a motion-smeared outline is a ramp whose outermost and strongest raw gradient
+    peaks are the sharp texture seen through it, scattered over its width; the smoothed
+    gradient peaks at the ramp's middle. Not on a small blob, nor wider than a quarter radius
+    (as :func:`outline_rms_limit_px`); usable as any pass-1 fit."""
+    pts, dirs, t, step, seg_in = geo
+    if R < SMALL_RADIUS_PX:
+        return None
+    prof = (sig.profiles(pts, dirs, t), sig.colour_profiles(pts, dirs, t))
+    for s in BLUR_SCALES_PX:
+        if 2.3548 * s > BLUR_MAX_RADIUS_FRACTION * R:
+            break
+        best = None
+        for rule, p in zip(("outermost", "strongest"), prof):
+            g = gradient_magnitude(gaussian_filter1d(p, s / step, axis=1, mode="nearest"), step)
+            fit = _pass1(cam, pts, dirs, t, g, seg_in, rule, a_range_rad, R, np.random.default_rng(len(t)))
+            if _pass1_usable(fit, seg_in, R) and (best is None or _quality(fit) > _quality(best)):
+                best = fit
+        if best is not None:
+            best.reading = "smoothed"
+            return best
+    return None
 
 
 def _fitted(cam, sig: _Signal, p2, R: float, sphere_radius_m: float) -> tuple[CandidateFit, float]:
@@ -562,8 +663,11 @@ def _pass1(cam, pts, dirs, t, g, seg_in, rule, a_range_rad, R, rng) -> ConeFit |
     if ok.sum() < 12:
         return None
     uv1 = pts[ok] + t1[ok, None] * dirs[ok]
-    return fit_cone(cam, normalize_near(cam, uv1), a_range_rad, inlier_px=max(1.5, 0.04 * R), rng=rng,
-                    max_iter=6)
+    fit = fit_cone(cam, normalize_near(cam, uv1), a_range_rad, inlier_px=max(1.5, 0.04 * R), rng=rng,
+                   max_iter=6)
+    if fit is not None:
+        fit.edge_uv_px = uv1
+    return fit
 
 
 # the "several" reading: this many strongest edges per ray, down to this share of the typical
