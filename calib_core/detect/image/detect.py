@@ -29,8 +29,9 @@ import cv2
 import numpy as np
 
 from calib_core.camera import CameraModel
+from calib_core.detect.image.blur import blur_range_floor_m
 from calib_core.detect.image.fit import CandidateFit, refine_candidate
-from calib_core.detect.image.fit import TIGHT_MIN_SUPPORT, clean_rms_px, outline_rms_limit_px
+from calib_core.detect.image.fit import TIGHT_MIN_SUPPORT, clean_rms_px
 from calib_core.detect.image.discs import candidates_by_discs
 from calib_core.detect.image.highlight import host_candidates, is_clipped_spot
 from calib_core.detect.image.hough import hough_circle
@@ -556,15 +557,10 @@ def _disputed_by(fits, f: CandidateFit) -> CandidateFit | None:
 
 
 def _blur_range_floor_m(f: CandidateFit, apparent_r_px: float, sphere_radius_m: float) -> float:
-    """The range's share of a blurred outline's systematic floor (m): the plateau scatter
-    (fit.outline_rms_limit_px beyond a sharp edge's) moves the whole outline in or out
-    together, so the apparent radius, and the range as range / radius, carry it; 0 for a sharp edge."""
+    """The range's share of a blurred outline's systematic floor (m), :func:`.blur.blur_range_floor_m`
+    (the edge width counts only for a mostly visible outline, as in the fit's judgement)."""
     width = f.extras.get("edge_width_px", np.nan) if f.support >= TIGHT_MIN_SUPPORT else np.nan
-    floor2 = outline_rms_limit_px(apparent_r_px, width) ** 2 - clean_rms_px(apparent_r_px) ** 2
-    if not floor2 > 0 or not apparent_r_px > 0:
-        return 0.0
-    range_m = sphere_radius_m / np.sin(f.fit.a_rad)
-    return float(range_m * np.sqrt(floor2) / apparent_r_px)
+    return blur_range_floor_m(sphere_radius_m / np.sin(f.fit.a_rad), apparent_r_px, width)
 
 
 def _detection(f: CandidateFit, sphere_radius_m: float, method: str, n_cands: int,
