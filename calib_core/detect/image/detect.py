@@ -29,9 +29,8 @@ import cv2
 import numpy as np
 
 from calib_core.camera import CameraModel
-from calib_core.detect.image.blur import blur_range_floor_m
-from calib_core.detect.image.fit import CandidateFit, refine_candidate
-from calib_core.detect.image.fit import TIGHT_MIN_SUPPORT, clean_rms_px
+from calib_core.detect.image.blur import blur_range_floor_m, clean_rms_px
+from calib_core.detect.image.fit import TIGHT_MIN_SUPPORT, CandidateFit, refine_candidate
 from calib_core.detect.image.discs import candidates_by_discs
 from calib_core.detect.image.highlight import host_candidates, is_clipped_spot
 from calib_core.detect.image.hough import hough_circle
@@ -557,8 +556,8 @@ def _disputed_by(fits, f: CandidateFit) -> CandidateFit | None:
 
 
 def _blur_range_floor_m(f: CandidateFit, apparent_r_px: float, sphere_radius_m: float) -> float:
-    """The range's share of a blurred outline's systematic floor (m), :func:`.blur.blur_range_floor_m`
-    (the edge width counts only for a mostly visible outline, as in the fit's judgement)."""
+    """The range's share of a blurred outline's systematic floor (m), for a mostly seen outline
+    (:func:`calib_core.detect.image.blur.blur_range_floor_m`); 0 for a sharp edge."""
     width = f.extras.get("edge_width_px", np.nan) if f.support >= TIGHT_MIN_SUPPORT else np.nan
     return blur_range_floor_m(sphere_radius_m / np.sin(f.fit.a_rad), apparent_r_px, width)
 

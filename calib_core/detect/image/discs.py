@@ -24,13 +24,12 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from calib_core.detect.image.region import (Candidate, _box_sum, _counts, disc_boxes, downscale, non_maximum,
+from calib_core.detect.image.region import (Candidate, _box_sum, _counts, disc_boxes, downscale, level_peaks, non_maximum,
                                            radius_ladder)
 
 NOISE_VAR = 25.0  # (Lab units)^2: a spread under ~5 units is image noise, not texture
 MIN_RESPONSE = 0.5  # smallest side distance (in spreads) that makes a candidate
 RADIUS_STEP = 1.25
-PEAKS_PER_RADIUS = 12
 MIN_SIDES = 5  # of the 8 boxes around a disc, at least this many inside the image
 
 
@@ -116,14 +115,7 @@ def candidates_by_discs(small_rgb: np.ndarray, s: int, r_bounds_px: tuple[float,
     for R in radii:
         L = max(0, int(np.floor(np.log2(R / 3.0))))
         D = disc_response(*stats[L], R / 2 ** L)
-        k = 2 * int(round(0.6 * R / 2 ** L)) + 1
-        dil = cv2.dilate(D, cv2.getStructuringElement(cv2.MORPH_RECT, (k, k)))
-        ys, xs = np.nonzero((D >= dil) & (D >= min_response))
-        if len(ys) > PEAKS_PER_RADIUS:  # the strongest few per radius are all that can rank
-            top = np.argpartition(-D[ys, xs], PEAKS_PER_RADIUS)[:PEAKS_PER_RADIUS]
-            ys, xs = ys[top], xs[top]
-        f = 2 ** L
-        peaks += [(float(D[y, x]), float(R), (x + 0.5) * f - 0.5, (y + 0.5) * f - 0.5) for y, x in zip(ys, xs)]
+        peaks += level_peaks(D, R / 2 ** L, L, min_response, R)
     # a mild preference for larger discs: a uniform patch between grout lines (a tile, a
     # brick) stands out as much as a ball, but only at a small radius
     return non_maximum(peaks, s, (h, w), max_candidates, "discs", min_sep=0.9)

@@ -23,6 +23,9 @@ from calib_core.detect.image.cone import (ConeFit, centre_uv_and_cov, fit_cone, 
                                           silhouette_uv, silhouette_xy)
 from calib_core.detect.image.edges import (edge_peaks, edge_widths, gradient_magnitude, outward_normals,
                                            pick_edges, ray_directions, sample_profiles, smooth_roi)
+from calib_core.detect.image.blur import (BLUR_MAX_RADIUS_FRACTION, CLEAN_RMS_FRAC, CLEAN_RMS_PX,  # noqa: F401
+                                          SHARP_EDGE_WIDTH_PX, SMALL_RADIUS_PX, blur_floor_px2, clean_rms_px,
+                                          outline_rms_limit_px)
 from calib_core.detect.image.region import Candidate
 
 SMOOTH_SIGMA_PX = 1.0
@@ -39,43 +42,6 @@ SYS_FRACTION = 0.2
 # by a holder, a hand or low contrast), and an edge RMS a round outline of real (JPEG, blurred)
 # photographs reaches: sub-pixel edges of a sharp outline scatter ~0.3-0.7 px.
 MIN_SUPPORT = 0.5
-CLEAN_RMS_PX = 0.9
-CLEAN_RMS_FRAC = 0.012
-# Below SMALL_RADIUS_PX (the smallest sphere the detector is meant for) the floor shrinks with
-# the radius: 0.9 px on an 8 px circle is a tenth of it (a rounded icon, a screw head).
-SMALL_RADIUS_PX = 15.0
-
-
-def clean_rms_px(radius_px: float) -> float:
-    """Largest edge RMS (px) of a round outline of this apparent radius."""
-    return max(CLEAN_RMS_FRAC * radius_px, CLEAN_RMS_PX * min(1.0, radius_px / SMALL_RADIUS_PX))
-
-
-# A blurred outline (a ball moving during the exposure, out of focus) has a wide edge whose
-# gradient peak is a plateau rather than a point: the sub-pixel peak lands anywhere on it, so
-# the edge points scatter by the plateau width / sqrt(12) (a uniform spread) on top of what a
-# sharp edge gives. SHARP_EDGE_WIDTH_PX is the full width at half maximum of the gradient of a
-# sharp photograph's edge after the SMOOTH_SIGMA_PX smoothing: 2.355 sqrt(1.0^2 + 1.4^2) px,
-# i.e. an optics and JPEG blur of 1.4 px (the renders' sharp edges measure 2.7-2.9 px, so
-# they get no allowance); only the width beyond it widens the roundness limit.
-SHARP_EDGE_WIDTH_PX = 4.0
-BLUR_MAX_RADIUS_FRACTION = 0.25
-
-
-def outline_rms_limit_px(radius_px: float, edge_width_px: float) -> float:
-    """Largest edge RMS (px) of a round outline of this apparent radius whose edges have this
-    median width (FWHM of the gradient, px): :func:`clean_rms_px` and, in quadrature, the
-    scatter of a peak's position over the width beyond a sharp edge's. Not below
-    SMALL_RADIUS_PX (a small blob with a soft edge is as likely a smudge or a shadow as a
-    blurred ball), and the width counts up to BLUR_MAX_RADIUS_FRACTION of the radius (a ball
-    blurred over more than that is a streak, not an outline)."""
-    if radius_px < SMALL_RADIUS_PX or not np.isfinite(edge_width_px):
-        return clean_rms_px(radius_px)
-    w = min(float(edge_width_px), BLUR_MAX_RADIUS_FRACTION * radius_px)
-    excess2 = max(0.0, w ** 2 - SHARP_EDGE_WIDTH_PX ** 2)
-    return float(np.sqrt(clean_rms_px(radius_px) ** 2 + excess2 / 12.0))
-
-
 # Without a background image the "looks like the surroundings just outside" test compares the
 # band outside the outline with the colour a little farther out, which clutter varies by
 # itself: a looser limit there.
@@ -424,7 +390,7 @@ def _fitted(cam, sig: _Signal, p2, R: float, sphere_radius_m: float) -> tuple[Ca
     # a blurred outline's peak position on the plateau is the same smear for neighbouring
     # normals: it does not average out over the outline, a systematic floor of its own
     # (the allowance of outline_rms_limit_px, zero for a sharp edge)
-    cov = cov + (limit ** 2 - clean_rms_px(R) ** 2) * np.eye(2)
+    cov = cov + blur_floor_px2(R, width if support >= TIGHT_MIN_SUPPORT else np.nan) * np.eye(2)
     res = CandidateFit(True, "", fit, centre, cov, sil_f, support, score, contrast,
                        float(sphere_radius_m / np.sin(fit.a_rad)))
     res.extras = {"edge_points": int(ok2.sum()), "inliers": int(fit.inliers.sum()),

@@ -190,6 +190,25 @@ def disc_boxes(R: float) -> tuple[int, int, int]:
     return hi, max(1, (ko - ki) // 2), (ki + ko + 1) // 2
 
 
+PEAKS_PER_RADIUS = 12  # the strongest few local maxima per radius are all that can rank
+
+
+def level_peaks(M: np.ndarray, R_px: float, level: int, floor: float, radius_label: float) -> list:
+    """``(value, R, x, y)`` of the local maxima of a response map ``M`` computed at pyramid
+    ``level`` for a circle of ``R_px`` pixels there: maxima over a window of 0.6 R, at least
+    ``floor``, the strongest PEAKS_PER_RADIUS of them; x, y in full-resolution pixels and R
+    reported as ``radius_label``."""
+    k = 2 * int(round(0.6 * R_px)) + 1
+    dil = cv2.dilate(M, cv2.getStructuringElement(cv2.MORPH_RECT, (k, k)))
+    ys, xs = np.nonzero((M >= dil) & (M >= floor))
+    if len(ys) > PEAKS_PER_RADIUS:
+        top = np.argpartition(-M[ys, xs], PEAKS_PER_RADIUS)[:PEAKS_PER_RADIUS]
+        ys, xs = ys[top], xs[top]
+    f = 2 ** level
+    return list(zip(M[ys, xs].tolist(), [float(radius_label)] * len(ys), ((xs + 0.5) * f - 0.5).tolist(),
+                    ((ys + 0.5) * f - 0.5).tolist()))
+
+
 def non_maximum(peaks, s: int, shape, max_candidates: int, source: str, min_sep: float) -> list[Candidate]:
     """Best ``(value, R, x, y)`` peaks (at 1/``s`` scale, image ``shape`` there) as candidates, each
     object once: a peak within ``min_sep`` radii of a kept one at a similar size (0.6-1.7x) is

@@ -18,11 +18,10 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from calib_core.detect.image.region import Candidate, downscale, non_maximum, radius_ladder
+from calib_core.detect.image.region import Candidate, downscale, level_peaks, non_maximum, radius_ladder
 
 LEVEL_RADIUS_PX = (4.0, 8.0)
 RADIUS_STEP = 1.2
-PEAKS_PER_RADIUS = 12
 
 
 def _colour_gradient(lab: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -85,15 +84,7 @@ def candidates_by_votes(small_rgb: np.ndarray, s: int, r_bounds_px: tuple[float,
         sg = max(0.8, 0.12 * Rl)
         V = cv2.GaussianBlur(V, (0, 0), sg) * (2 * np.pi * sg * sg)
         V /= 2 * np.pi * Rl
-        k = 2 * int(round(0.6 * Rl)) + 1
-        dil = cv2.dilate(V, cv2.getStructuringElement(cv2.MORPH_RECT, (k, k)))
-        yy, xx = np.nonzero((V >= dil) & (V >= min_fraction))
-        if len(yy) > PEAKS_PER_RADIUS:  # the strongest few per radius are all that can rank
-            top = np.argpartition(-V[yy, xx], PEAKS_PER_RADIUS)[:PEAKS_PER_RADIUS]
-            yy, xx = yy[top], xx[top]
-        f = 2 ** L
-        peaks += list(zip(V[yy, xx].tolist(), [float(R)] * len(yy), ((xx + 0.5) * f - 0.5).tolist(),
-                          ((yy + 0.5) * f - 0.5).tolist()))
+        peaks += level_peaks(V, Rl, L, min_fraction, R)
     return non_maximum(peaks, s, (h0, w0), max_candidates, "votes", min_sep=0.5)
 
 
