@@ -23,6 +23,12 @@ def default_stereo_cov() -> np.ndarray:
     return np.diag([DEFAULT_STEREO_SIGMA_RAD**2] * 3 + [DEFAULT_STEREO_SIGMA_M**2] * 3)
 
 
+def assumed_stereo_text() -> str:
+    """What the assumed stereo uncertainty is, as the warnings say it (from the constants above)."""
+    return (f"assumed {math.degrees(DEFAULT_STEREO_SIGMA_RAD):.2g} deg / {DEFAULT_STEREO_SIGMA_M * 1000:.2g} mm "
+            "(1-sigma) per axis for the stereo transform")
+
+
 def session_stereo_cov(session, ref: str, cam: str, T_cam_ref: np.ndarray) -> tuple[np.ndarray, bool]:
     """Covariance of the stereo transform ``T_cam_ref`` from session.yaml's optional
     ``stereo_covariance`` mapping (same keys as ``stereo``; one stated for ``T_<ref>_<cam>`` is
