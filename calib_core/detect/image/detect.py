@@ -379,9 +379,15 @@ def _more_cues(look, cands, fits):
         return cands, fits
     # fourth cue: a ball's print (pentagons, panels) made the small candidates: a cluster of them.
     # A guess built from other candidates: it counts only when it gives a clear outline
+    # (discarded, it leaves the shared random stream as it found it: what draws after it, the
+    # host search around a clipped highlight, draws as without the cue)
     more = _new_candidates(fits, enclosing_candidates(cands, look.r_bounds))
+    state = look.rng.bit_generator.state
     fourth = _refine_all(look, more, False)
-    return (cands + more, fits + fourth) if _clear(fourth) else (cands, fits)
+    if _clear(fourth):
+        return cands + more, fits + fourth
+    look.rng.bit_generator.state = state
+    return cands, fits
 
 
 class _Look:
