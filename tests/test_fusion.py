@@ -219,6 +219,26 @@ def test_colour_cloud_sparse_points_auto_splat_closes_gaps():
     assert ok_thin[len(front):][shadow < 0.25].mean() > 0.3  # a 1-px z-buffer leaks through the gaps
 
 
+@pytest.mark.parametrize("splat", [24, "auto"])
+def test_back_point_right_behind_a_sparse_front_stays_uncoloured(splat):
+    """A wide splat's depth tolerance (24 px at ~4.3 m, f 300: 0.05 + 0.34 m) must not let a point
+    0.3 m straight behind a front point take a colour: the occluder in its own pixel is at most
+    a pixel or two away, so its reach is that, not the splat's (found on the flange's border row)."""
+    cam = _cam()
+    front = _grid(-1.6, 1.6, -1.2, 1.2, 4.0, 0.4)  # 30 px apart: the auto splat is at its widest
+    back = front + 0.3 * front / np.linalg.norm(front, axis=1, keepdims=True)
+    uv, depth, valid = F.project_cloud(np.vstack([front, back]), np.eye(4), cam)
+    n = len(front)
+    assert valid.all() and np.abs(uv[:n] - uv[n:]).max() < 1e-3
+    if splat == "auto":
+        _, _, pix = F.zbuffer.pixel_index(uv, valid, cam.width_px, cam.height_px)
+        r_cell = F.zbuffer.splatted_zbuffer(pix, depth, cam.width_px, cam.height_px, "auto", 0.05)[1]
+        assert r_cell.max() == 24
+    vis = F.visible_points(uv, depth, valid, cam, splat_radius_px=splat)
+    assert vis[:n].all()
+    assert not vis[n:].any()
+
+
 def test_colour_cloud_multi_picks_a_camera_that_sees_the_point():
     cam = _cam()
     wall = _grid(-4.0, 4.0, -1.0, 1.0, 3.0, 0.02)  # sonar frame == cam1 frame here

@@ -4,6 +4,8 @@ Points are snapped to their nearest pixel; each pixel keeps the nearest depth
 (``np.minimum.at``); splatting (an erosion of the depth image, OpenCV) grows each point
 to a disk/square so a surface has no holes for farther points to show through. The
 "auto" splat adapts the radius to the local spacing of the nearest surface (per 32-px cell).
+:func:`visibility_bound` turns them into the farthest depth a point may have at each pixel and
+still be seen (splatted and unsplatted tests; :func:`calib_core.fusion.cloud.visible_points`).
 Depths are camera-frame z in metres (float32); pixel coordinates raw, centres at integers.
 """
 
@@ -49,7 +51,8 @@ def depth_buffer(uv_px: np.ndarray, depth_m: np.ndarray, valid: np.ndarray, widt
     return z[:-1].reshape(height, width)
 
 
-def _zimage(pix, depth32, width, height) -> np.ndarray:
+def zimage(pix, depth32, width, height) -> np.ndarray:
+    """Flat (H*W+1,) nearest depth per pixel, unsplatted (inf where empty and in the last slot)."""
     z = np.full(height * width + 1, np.inf, np.float32)
     np.minimum.at(z, pix, depth32)
     return z
@@ -68,7 +71,61 @@ CELL_SHIFT = 5  # 32-px cells
 def splatted_zbuffer(pix, depth32, width, height, splat_radius_px, layer_m) -> tuple[np.ndarray, np.ndarray | None]:
     """Flat (H*W+1,) splatted z-buffer (the last slot, for invalid points, is inf) and the
     per-cell radius grid of the adaptive splat (None for a fixed radius)."""
-    z = _zimage(pix, depth32, width, height)
+    z = zimage(pix, depth32, width, height)
+    return z, splat_zimage(z, width, height, splat_radius_px, layer_m)
+
+
+OWN_REACH_PX = float(np.sqrt(2.0))  # farthest two points snapped into one pixel can be
+NEAR_REACH_PX = 2.0 * np.sqrt(2.0)  # farthest two points snapped into a 3x3 block of pixels can be
+
+
+def _reach_factor(reach_px, slope_per_px):
+    """1 / (1 - slope_per_px x reach_px) (float32, inf where that reaches 1): d <= z + tol + k d
+    <=> d <= (z + tol) / (1 - k), exactly, for the reach term k = slope_per_px x reach_px."""
+    k = np.asarray(reach_px, np.float64) * slope_per_px
+    with np.errstate(divide="ignore"):
+        return np.where(k < 1.0, 1.0 / (1.0 - k), np.inf).astype(np.float32)
+
+
+def visibility_bound(pix, depth32, width, height, splat_radius_px, tolerance_m: float,
+                     slope_per_px: float) -> np.ndarray:
+    """Flat (H*W+1,) farthest depth (m) a point snapped to each pixel may have and still be seen
+    (inf in the last slot, for invalid points).
+
+    A point at depth d is seen when d <= z + tolerance_m + slope_per_px x reach_px x d for each of:
+    the unsplatted nearest depth z of its own pixel (reach :data:`OWN_REACH_PX`), of its 3x3
+    block (reach :data:`NEAR_REACH_PX`) and the splatted depth (reach: the splat radius of the
+    point's cell, or the fixed one). The first two keep a wide splat's reach from letting
+    through a back surface right behind a front point."""
+    tol = np.float32(tolerance_m)
+    z = zimage(pix, depth32, width, height)
+    img = z[:-1].reshape(height, width)
+    out = np.empty_like(z)
+    bound = out[:-1].reshape(height, width)
+    np.add(img, tol, out=bound)
+    bound *= _reach_factor(OWN_REACH_PX, slope_per_px)
+    near = cv2.erode(img, np.ones((3, 3), np.uint8), borderType=cv2.BORDER_CONSTANT, borderValue=np.inf)
+    near += tol
+    near *= _reach_factor(NEAR_REACH_PX, slope_per_px)
+    np.minimum(bound, near, out=bound)
+    r_cell = splat_zimage(z, width, height, splat_radius_px, tolerance_m)
+    if r_cell is None:
+        factor = _reach_factor(max(0, int(splat_radius_px)), slope_per_px)
+    else:
+        g = 1 << CELL_SHIFT
+        f_cell = _reach_factor(r_cell, slope_per_px)
+        factor = cv2.resize(f_cell, (f_cell.shape[1] * g, f_cell.shape[0] * g), interpolation=cv2.INTER_NEAREST)
+        factor = factor[:height, :width]
+    img += tol
+    img *= factor
+    np.minimum(bound, img, out=bound)
+    out[-1] = np.inf
+    return out
+
+
+def splat_zimage(z, width, height, splat_radius_px, layer_m) -> np.ndarray | None:
+    """Splat a flat (H*W+1,) z-image in place; returns the adaptive splat's per-cell radius grid
+    (None for a fixed radius)."""
     img = z[:-1].reshape(height, width)
     r_cell = None
     if isinstance(splat_radius_px, str):
@@ -78,7 +135,7 @@ def splatted_zbuffer(pix, depth32, width, height, splat_radius_px, layer_m) -> t
     elif int(splat_radius_px) > 0:
         img[:] = cv2.erode(img, _splat_kernel(int(splat_radius_px)), borderType=cv2.BORDER_CONSTANT, borderValue=np.inf)
     z[-1] = np.inf
-    return z, r_cell
+    return r_cell
 
 
 def _front_counts(padded: np.ndarray, g: int, layer_m: float) -> tuple[np.ndarray, np.ndarray]:
