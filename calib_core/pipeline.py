@@ -291,7 +291,7 @@ def _well_registered(res, n_with_candidates: int) -> bool:
             and res.support >= PREDICTION_MIN_SUPPORT and res.support + res.rough_agree >= 0.6 * n_with_candidates)
 
 
-def _stereo_source(regs: dict, b: str, stereo: dict) -> str | None:
+def _stereo_source(regs: dict, b: str, stereo: dict, cameras) -> str | None:
     """The camera whose registration, carried by the stereo transforms, predicts camera ``b``'s
     centres: well registered, tied to ``b`` by a stated stereo transform or a chain of them
     (:mod:`calib_core.stereo.chain`), and better registered than ``b`` (more plain detections agree
@@ -301,7 +301,7 @@ def _stereo_source(regs: dict, b: str, stereo: dict) -> str | None:
     def key(c):
         return (regs[c][0].support, -regs[c][0].residual_px)
 
-    cands = [a for a in regs if a != b and stereo_path(stereo, a, b) is not None and _well_registered(*regs[a])]
+    cands = [a for a in regs if a != b and stereo_path(stereo, a, b, cameras) is not None and _well_registered(*regs[a])]
     best = max(cands, key=key, default=None)
     if best is None or (_well_registered(*regs[b]) and key(best) <= key(b)):
         return None
@@ -329,10 +329,10 @@ def _stereo_predictions(data: SessionData, detections: dict, only: set) -> dict:
     regs = {c: (res, len(cands)) for c, (res, cands) in full.items()}
     out = {}
     for b in cams:
-        a = _stereo_source(regs, b, stereo)
+        a = _stereo_source(regs, b, stereo, cams)
         if a is None:
             continue
-        T_b_a, cov, _ = chained_stereo(stereo, lambda k: key_stereo_cov(data.session, k)[0], a, b)
+        T_b_a, cov, _ = chained_stereo(stereo, lambda k: key_stereo_cov(data.session, k)[0], a, b, cams)
         res_a = regs[a][0]
         out[b] = stereo_predictions(data.camera(b), T_b_a, cov, res_a.T_cam_sonar, res_a.residual_px,
                                     data.camera(a).fx, _sonar_centers(detections), a,
@@ -383,7 +383,7 @@ def _stereo_refusals(data: SessionData, detections: dict, only: set) -> dict:
 # calib_core.detect.image.predicted stands between brick and a "sphere"), at least this many
 PREDICTION_MIN_SUPPORT = 4
 # ... and whose ranges agree with the images' ranges (from the apparent size) to this RMS: the
-# look takes the predicted size as known to a few per cent (image_predicted.PRIOR_REL_SIGMA); with
+# look takes the predicted size as known to a few per cent (image.predicted.PRIOR_REL_SIGMA); with
 # a size 8 % off it finds some balls 3-4 px off (bench_predicted_look.py)
 PREDICTION_MAX_RANGE_RMS = 0.04
 

@@ -1,6 +1,6 @@
 """The fourth cue of the image detector: a ball printed with a pattern (a football's pentagons)
 shows as a cluster of small candidates; the circle around the cluster is proposed and the fit
-finds the ball's outline there (calib_core.detect.image_pattern)."""
+finds the ball's outline there (calib_core.detect.image.pattern)."""
 
 import numpy as np
 import pytest

@@ -101,3 +101,18 @@ def test_detector_version_follows_the_loaders_the_inputs_pass_through(tmp_path, 
     (pkg / rel).write_text((pkg / rel).read_text() + "\n# changed\n")
     assert fpm.source_digest(pkg) != before
     assert fpm.detector_version().endswith(fpm.source_digest(Path(fpm.__file__).resolve().parent))
+
+
+def test_the_assumed_stereo_covariance_of_the_vouching_is_in_the_fingerprint():
+    """The stereo vouching refuses image detections with the stereo transform's covariance, the
+    assumed default when the session states none: a changed default changes detections, so the
+    module that defines it must be one of the detector's sources (it was solve/rig.py, not one)."""
+    import inspect
+    from pathlib import Path
+
+    from calib_core.solve import stereo_cov
+
+    pkg = Path(fpm.__file__).resolve().parent
+    covered = {p.resolve() for pattern in fpm.DETECTOR_SOURCES for p in pkg.glob(pattern)}
+    for fn in (stereo_cov.default_stereo_cov, stereo_cov.key_stereo_cov, stereo_cov.invert_with_cov):
+        assert Path(inspect.getsourcefile(fn)).resolve() in covered, fn.__name__

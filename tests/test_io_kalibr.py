@@ -75,6 +75,7 @@ def test_one_camera_chain_needs_no_name(tmp_path):
     (dict(intrinsics=[-5.0, 460.0, 480.0, 300.0]), "focal lengths must be positive"),
     (dict(distortion_model="none"), "distortion_model 'none' but distortion_coeffs are not zero"),
     (dict(distortion_model="none", distortion_coeffs="x"), "must be a list of numbers"),
+    (dict(distortion_model="none", distortion_coeffs=0.1), "must be a list of numbers"),
 ])
 def test_bad_entries_are_refused_in_one_line(tmp_path, change, match):
     p = _write(tmp_path, {"cam0": {**CHAIN["cam1"], **change}})

@@ -94,3 +94,30 @@ def test_a_camera_tied_only_through_a_third_is_vouched_for_by_it():
     for seed in range(3, 11):  # right detections pass
         data, dets = _three_camera_session(seed=seed, wrong=())
         assert _stereo_refusals(data, dets, set(dets)) == {}
+
+
+def test_camera_names_with_underscores_are_chained():
+    """The bag importer names cameras after their topics (``/stereo/left/image_raw`` ->
+    ``stereo_left``), so a stated key may be ``T_stereo_right_stereo_left``: the chain must still
+    find it, directly and through a third camera (before the fix it split keys on every '_' and
+    skipped them, losing the stereo link a plain lookup used to find)."""
+    T = _T([0.0, 0.05, 0.0], [-0.3, 0.0, 0.0])
+    T3 = _T([0.1, 0.0, 0.0], [0.0, -0.2, 0.0])
+    stereo = {"T_stereo_right_stereo_left": T, "T_cam_3_stereo_left": T3}
+    cams = ["stereo_left", "stereo_right", "cam_3"]
+    assert stereo_path(stereo, "stereo_left", "stereo_right") == ["stereo_left", "stereo_right"]
+    assert stereo_path(stereo, "stereo_right", "cam_3", cams) == ["stereo_right", "stereo_left", "cam_3"]
+    T_got, _, path = chained_stereo(stereo, lambda k: np.eye(6) * 1e-6, "stereo_right", "cam_3", cams)
+    assert np.allclose(T_got, T3 @ invert_T(T))
+    # a split that names no camera of the session is no camera: nothing ties cam_3 to "stereo"
+    assert stereo_path(stereo, "cam_3", "stereo", cams) is None
+
+
+def test_the_solves_stereo_link_reads_underscored_names():
+    from calib_core.solve.stereo_cov import stereo_link
+
+    T = _T([0.0, 0.05, 0.0], [-0.3, 0.0, 0.0])
+    session = SimpleNamespace(stereo={"T_stereo_right_stereo_left": T}, raw={},
+                              cameras={"stereo_left": {}, "stereo_right": {}}, manifest_path="session.yaml")
+    link = stereo_link(session, "stereo_left", "stereo_right")
+    assert link is not None and np.allclose(link[0], T) and link[2] and link[3] is None

@@ -139,3 +139,16 @@ def test_stereo_link_chains_through_several_cameras():
     del raw["stereo_covariance"]["T_cam2_cam3"]
     assert stereo_link(s, "cam1", "cam4")[2] is True
     assert stereo_link(SimpleNamespace(**{**vars(s), "stereo": {"T_cam2_cam1": T21}}), "cam1", "cam4") is None
+
+
+def test_the_assumed_stereo_warning_says_the_assumed_numbers(monkeypatch):
+    """The warning is built from the constants the solve and the vouching use (it was a fixed
+    string beside them: a changed default would have been misreported)."""
+    import math
+
+    from calib_core.solve import stereo_cov
+
+    assert stereo_cov.assumed_stereo_text().startswith("assumed 0.05 deg / 1 mm (1-sigma) per axis")
+    monkeypatch.setattr(stereo_cov, "DEFAULT_STEREO_SIGMA_RAD", math.radians(0.1))
+    monkeypatch.setattr(stereo_cov, "DEFAULT_STEREO_SIGMA_M", 0.002)
+    assert stereo_cov.assumed_stereo_text().startswith("assumed 0.1 deg / 2 mm")

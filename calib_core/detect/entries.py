@@ -153,7 +153,7 @@ def beam_capture_ids(capture_ids: list[str]) -> list[str]:
 
 
 def beam_crop_of(data: SessionData, cid: str, detections: dict):
-    """One capture's crop for the beam-width estimate (sonar_beam.beam_crop), loaded from its cloud."""
+    """One capture's crop for the beam-width estimate (sonar.beam.beam_crop), loaded from its cloud."""
     from calib_core.detect.sonar.beam import beam_crop
     from calib_core.io.clouds import load_cloud
 

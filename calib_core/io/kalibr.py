@@ -96,7 +96,9 @@ def _no_distortion(path: Path, entry: dict, key: str) -> np.ndarray:
     given = entry.get("distortion_coeffs")
     if given is None or (isinstance(given, list) and not given):
         return np.zeros(0)
-    arr = _numbers(path, entry, key, "distortion_coeffs", np.size(given) if isinstance(given, list) else -1)
+    if not isinstance(given, list):
+        raise SessionError(path, f"{key}: 'distortion_coeffs' must be a list of numbers")
+    arr = _numbers(path, entry, key, "distortion_coeffs", len(given))
     if np.any(arr != 0):
         raise SessionError(path, f"{key}: distortion_model 'none' but distortion_coeffs are not zero "
                                  f"({', '.join(f'{v:.6g}' for v in arr[:6])}): name the model (radtan or equidistant)")

@@ -28,7 +28,7 @@ from calib_core.solve.scale import (diameter_sigma, outline_sigma_px, range_mode
                                    stereo_limit_note)
 from calib_core.solve.shared_scale import shared_scale
 from calib_core.solve.rig import find_stereo, solve_rig, table_i
-from calib_core.solve.stereo_cov import stereo_link
+from calib_core.solve.stereo_cov import assumed_stereo_text, stereo_link
 from calib_core.solve.single import CameraSolution, solve_camera
 
 
@@ -164,8 +164,7 @@ def _joint(session, sols, entries, opts, progress, warnings):
     rs = solve_rig(sols, links, ref, estimate_scale=opts.estimate_scale, robust=opts.robust)
     warnings += rs.warnings
     if any(v["covariance_assumed"] for v in stereo_info.values()):
-        warnings.append("joint solve: no stereo_covariance in session.yaml; assumed 0.05 deg / 1 mm (1-sigma) "
-                        "per axis for the stereo transform")
+        warnings.append(f"joint solve: no stereo_covariance in session.yaml; {assumed_stereo_text()}")
     cons = consistency(rs.chi2, rs.dof, "joint solve")
     joint = {"reference": ref, "cameras": rs.cameras, "stereo": stereo_info,
              "T_cam_ref_solved": rs.T_cam_ref, "rms_reprojection_px": rs.rms_px, "chi2": rs.chi2, "dof": rs.dof,

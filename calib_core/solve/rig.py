@@ -28,16 +28,9 @@ from calib_core.solve.refine import (Link, RigProblem, covariance_from_jacobian,
 from calib_core.solve.systematic import systematic_term
 from calib_core.solve.scale import choose_scale, scale_mode
 from calib_core.solve.single import CameraSolution
-
-# Assumed stereo uncertainty when none is given: a good checkerboard stereo calibration
-# (about 0.05 deg per axis and 1 mm per axis, 1-sigma). An assumption, said in the output.
-DEFAULT_STEREO_SIGMA_RAD = math.radians(0.05)
-DEFAULT_STEREO_SIGMA_M = 0.001
-
-
-def default_stereo_cov() -> np.ndarray:
-    return np.diag([DEFAULT_STEREO_SIGMA_RAD**2] * 3 + [DEFAULT_STEREO_SIGMA_M**2] * 3)
-
+# (the assumed stereo covariance lives with the stated one: the stereo vouching of detections uses it too,
+# so it is part of the detector fingerprint; re-exported here for the solver's callers)
+from calib_core.solve.stereo_cov import DEFAULT_STEREO_SIGMA_M, DEFAULT_STEREO_SIGMA_RAD, default_stereo_cov  # noqa: F401
 
 def cov_of_inverse(T_a_b: np.ndarray, cov_ab: np.ndarray) -> np.ndarray:
     """6x6 covariance of ``T_b_a`` from that of ``T_a_b`` (the solver's perturbation; see

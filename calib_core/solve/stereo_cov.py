@@ -4,12 +4,29 @@ or chained through the others)."""
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from calib_core.errors import SessionError
 from calib_core.geometry import invert_T
-from calib_core.solve.rig import cov_of_inverse, default_stereo_cov
-from calib_core.stereo.chain import chained_stereo
+from calib_core.stereo.chain import chained_stereo, invert_with_cov
+
+# Assumed stereo uncertainty when none is given: a good checkerboard stereo calibration
+# (about 0.05 deg per axis and 1 mm per axis, 1-sigma). An assumption, said in the output.
+# (Also what the stereo vouching of detections assumes: this module is in the detector fingerprint.)
+DEFAULT_STEREO_SIGMA_RAD = math.radians(0.05)
+DEFAULT_STEREO_SIGMA_M = 0.001
+
+
+def default_stereo_cov() -> np.ndarray:
+    return np.diag([DEFAULT_STEREO_SIGMA_RAD**2] * 3 + [DEFAULT_STEREO_SIGMA_M**2] * 3)
+
+
+def assumed_stereo_text() -> str:
+    """What the assumed stereo uncertainty is, as the warnings say it (from the constants above)."""
+    return (f"assumed {math.degrees(DEFAULT_STEREO_SIGMA_RAD):.2g} deg / {DEFAULT_STEREO_SIGMA_M * 1000:.2g} mm "
+            "(1-sigma) per axis for the stereo transform")
 
 
 def session_stereo_cov(session, ref: str, cam: str, T_cam_ref: np.ndarray) -> tuple[np.ndarray, bool]:
@@ -19,7 +36,7 @@ def session_stereo_cov(session, ref: str, cam: str, T_cam_ref: np.ndarray) -> tu
     raw = (session.raw or {}).get("stereo_covariance") or {}
     key, inverse = f"T_{cam}_{ref}", f"T_{ref}_{cam}"
     if isinstance(raw, dict) and key not in raw and inverse in raw:
-        return cov_of_inverse(invert_T(T_cam_ref), _stated(session, raw, inverse)), False
+        return invert_with_cov(invert_T(T_cam_ref), _stated(session, raw, inverse))[1], False
     if isinstance(raw, dict) and key in raw:
         return _stated(session, raw, key), False
     return default_stereo_cov(), True
@@ -39,7 +56,7 @@ def stereo_link(session, ref: str, cam: str):
     transforms (:func:`calib_core.stereo.chain.chained_stereo`): stated for the pair (via None),
     else chained through the cameras ``via`` names ("cam3", or "cam3, cam4"); ``assumed`` when
     any link's covariance is the assumed default. None when no chain ties the two."""
-    got = chained_stereo(session.stereo, lambda key: key_stereo_cov(session, key)[0], ref, cam)
+    got = chained_stereo(session.stereo, lambda key: key_stereo_cov(session, key)[0], ref, cam, list(session.cameras))
     if got is None:
         return None
     T, cov, path = got

@@ -51,23 +51,32 @@ def compose_with_cov(T_bc: np.ndarray, cov_bc: np.ndarray, T_ca: np.ndarray, cov
     return T_bc @ T_ca, J1 @ cov_bc @ J1.T + J2 @ cov_ca @ J2.T
 
 
-def _edges(stereo: dict) -> dict:
+def _splits(key: str, cameras) -> list[tuple[str, str]]:
+    """The (target, source) readings of a stereo key ``T_<target>_<source>``. Camera names may hold
+    '_' (the bag importer's ``stereo_left``), so every '_' is a possible border; with the session's
+    ``cameras`` only the readings naming two of them are kept."""
+    if not key.startswith("T_"):
+        return []
+    rest = key[2:]
+    out = [(rest[:i], rest[i + 1:]) for i, ch in enumerate(rest) if ch == "_" and 0 < i < len(rest) - 1]
+    return out if cameras is None else [(b, a) for b, a in out if b in cameras and a in cameras]
+
+
+def _edges(stereo: dict, cameras=None) -> dict:
     """{camera: [neighbour, ...]} of the stereo keys ``T_<target>_<source>`` (both directions)."""
     out: dict = {}
     for key in stereo:
-        parts = key.split("_")
-        if len(parts) != 3 or parts[0] != "T":
-            continue
-        b, a = parts[1], parts[2]
-        out.setdefault(a, []).append(b)
-        out.setdefault(b, []).append(a)
+        for b, a in _splits(key, None if cameras is None else set(cameras)):
+            out.setdefault(a, []).append(b)
+            out.setdefault(b, []).append(a)
     return out
 
 
-def stereo_path(stereo: dict, a: str, b: str) -> list[str] | None:
+def stereo_path(stereo: dict, a: str, b: str, cameras=None) -> list[str] | None:
     """The shortest chain of cameras [a, ..., b] tied pairwise by stated stereo transforms
-    (breadth first; ties broken by the order of the keys), or None."""
-    edges, prev, todo = _edges(stereo), {a: None}, deque([a])
+    (breadth first; ties broken by the order of the keys), or None. ``cameras``: the session's
+    camera names (they disambiguate keys whose names hold '_'); None reads every split."""
+    edges, prev, todo = _edges(stereo, cameras), {a: None}, deque([a])
     while todo:
         c = todo.popleft()
         if c == b:
@@ -89,11 +98,11 @@ def _link(stereo: dict, cov_of, a: str, b: str) -> tuple[np.ndarray, np.ndarray]
     return invert_with_cov(np.asarray(stereo[f"T_{a}_{b}"], float), np.asarray(cov_of(f"T_{a}_{b}"), float))
 
 
-def chained_stereo(stereo: dict, cov_of, a: str, b: str):
+def chained_stereo(stereo: dict, cov_of, a: str, b: str, cameras=None):
     """(T_b_a, 6x6 covariance, [a, ..., b]) along the shortest chain of stated stereo transforms,
     or None when no chain ties ``a`` to ``b``. ``cov_of(key)``: the stated covariance of
-    ``stereo[key]``."""
-    path = None if a == b else stereo_path(stereo, a, b)
+    ``stereo[key]``; ``cameras``: as in :func:`stereo_path`."""
+    path = None if a == b else stereo_path(stereo, a, b, cameras)
     if path is None:
         return None
     T, cov = np.eye(4), np.zeros((6, 6))

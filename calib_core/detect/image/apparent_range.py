@@ -4,7 +4,7 @@ The cone fit's covariance gives the half-angle's error from the scatter of the e
 alone, as if each point's error were independent. An outline also has an error shared by all
 its points: shading at the limb, the renderer's or the lens's anti-aliasing, JPEG and the
 sub-pixel edge locator move the whole outline in or out together. The centre carries that
-shared error as a floor of SYS_FRACTION x the edge RMS per axis (image_fit); the outline's
+shared error as a floor of SYS_FRACTION x the edge RMS per axis (fit.py); the outline's
 radial mode, the apparent radius, is the third such mode and gets the same floor. The range,
 inversely proportional to the radius, carries it relatively: range x floor / radius.
 Measured against the synthetic truth (benchmarks/bench_range_sigma.py, BENCHMARKS.md "Eleventh

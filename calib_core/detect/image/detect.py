@@ -3,12 +3,12 @@
 Main entry: :func:`detect_sphere_in_image`. Steps:
 
 1. coarse candidates in a downscaled image: difference to a background model when there is
-   one (:mod:`.image_region`), else round-outline votes (:mod:`.image_votes`), then, when those
-   give no clean outline, a colour centre-surround contrast (:mod:`.image_region`) and discs
-   whose colour stands out from a textured surround (:mod:`.image_discs`); sizes bounded by
+   one (:mod:`.region`), else round-outline votes (:mod:`.votes`), then, when those
+   give no clean outline, a colour centre-surround contrast (:mod:`.region`) and discs
+   whose colour stands out from a textured surround (:mod:`.discs`); sizes bounded by
    the intrinsics, the known radius and plausible ranges;
 2. per candidate, full-resolution sub-pixel silhouette edges and a robust fit of the sphere's
-   silhouette cone in undistorted normalised coordinates (:mod:`.image_fit`, :mod:`.image_cone`);
+   silhouette cone in undistorted normalised coordinates (:mod:`.fit`, :mod:`.cone`);
    the sphere centre's perspective projection follows exactly from the cone axis (then the lens
    distortion gives raw pixels), and the known radius gives the range;
 3. a verdict: one good candidate -> found; none -> the reason ("no round outline" / "sphere cut by the image
@@ -379,9 +379,15 @@ def _more_cues(look, cands, fits):
         return cands, fits
     # fourth cue: a ball's print (pentagons, panels) made the small candidates: a cluster of them.
     # A guess built from other candidates: it counts only when it gives a clear outline
+    # (discarded, it leaves the shared random stream as it found it: what draws after it, the
+    # host search around a clipped highlight, draws as without the cue)
     more = _new_candidates(fits, enclosing_candidates(cands, look.r_bounds))
+    state = look.rng.bit_generator.state
     fourth = _refine_all(look, more, False)
-    return (cands + more, fits + fourth) if _clear(fourth) else (cands, fits)
+    if _clear(fourth):
+        return cands + more, fits + fourth
+    look.rng.bit_generator.state = state
+    return cands, fits
 
 
 class _Look:
@@ -427,7 +433,7 @@ class _Look:
 
 def _host_of_highlight(look, det: ImageDetection, method: str) -> ImageDetection:
     """The ball carrying a clipped highlight that was taken for the sphere
-    (:mod:`.image_highlight`); the highlight's own detection when no ball outline is found
+    (:mod:`.highlight`); the highlight's own detection when no ball outline is found
     around it (a small white ball overexposed is a clipped disc too)."""
     hosts = host_candidates(det.center_uv_px, det.radius_px, look.img.shape)
     fits = [(c, look.refine(c)) for c in hosts]  # all (the halo's outline must not stop the search)

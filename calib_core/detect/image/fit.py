@@ -331,7 +331,7 @@ def _arc_held(cam, sig: _Signal, fit: ConeFit, seg_in: np.ndarray, R: float) -> 
     # the apparent radius moves with the half-angle as R / (sin a cos a)
     r_sd = R * np.sqrt(max(float(fit.cov_params[2, 2]), 0.0)) / max(np.sin(fit.a_rad) * np.cos(fit.a_rad), 1e-6)
     outline_sd = float(np.sqrt(np.linalg.eigvalsh(cov)[-1] + r_sd ** 2))
-    half = max(3.0, 3.0 * fit.sigma_px + 1.5, 0.02 * R)  # (pass 2's band, as in _pass2)
+    half = pass2_half_px(fit.sigma_px, R)
     if ARC_BAND_SIGMAS * outline_sd > half:
         return False
     uv = fit.edge_uv_px[fit.inliers]
@@ -435,6 +435,12 @@ def _judge(cam, res: CandidateFit, R: float, outside_bad: float, with_background
         res.ok, res.reason = False, "round outline inside a larger object"
 
 
+def pass2_half_px(sigma_px: float, R: float) -> float:
+    """Half-width (px) of the band pass 2 searches around a pass-1 outline of edge RMS
+    ``sigma_px`` and apparent radius ``R`` (also what a rescued arc's prediction must fit in)."""
+    return max(3.0, 3.0 * sigma_px + 1.5, 0.02 * R)
+
+
 def _pass2(cam, sig, fit1: ConeFit, R: float, a_range_rad, rng):
     """Edges along the normals of ``fit1``'s outline, refitted: (fit, used mask, strengths, K,
     edge widths). When that outline is not round for its edge width, the same normals are read
@@ -451,7 +457,7 @@ def _pass2(cam, sig, fit1: ConeFit, R: float, a_range_rad, rng):
     ctr = cam.project(fit1.w[None, :])[0]
     nrm = outward_normals(sil, sil.mean(axis=0) if np.isfinite(ctr).all() else ctr)
     geo = (sil, sil_xy, nrm, k2, perim)
-    half = max(3.0, 3.0 * fit1.sigma_px + 1.5, 0.02 * R)
+    half = pass2_half_px(fit1.sigma_px, R)
     best = _pass2_reading(cam, sig, fit1, R, a_range_rad, rng, geo, half, 0.0)
     if best is None or best[0].sigma_px > 0.5 * clean_rms_px(R) or best[0].inliers.mean() < 0.9:
         alt = _pass2_several(cam, sig, fit1, R, a_range_rad, geo, max(half, PASS2_SEVERAL_HALF_FRAC * R))

@@ -30,7 +30,7 @@ uncapped size term was rejected in the first round: any large rough outline scor
 
 Score round 3: the recalibration also reads the fit's own quality (``fit_quality``: the share of
 the outline seen, discounted by its spread), capped at QUALITY_CAP. On the photographic kinds
-(glossy gym balls, beach balls with gores, motion blur; photo_cases.py) the wrong outlines
+(glossy gym balls, beach balls with gores, motion blur; synth/photo/cases.py) the wrong outlines
 (texture or gore arcs, a ball's part, ball-free images) had fit quality 0.26-0.63 while 95 % of
 the right ones had >= 0.6; the logit and the size term scored them 0.5-1.0. So p = sigmoid(w0 +
 w1 logit + w2 size_term + w3 min(fit_quality, QUALITY_CAP)) (CALIBRATION, fitted on the

@@ -20,7 +20,7 @@ The same detector serves any range sensor whose returns start at the frame origi
 beam width of 0 (a LiDAR, an RGB-D camera) the cone model is the plain first-return model.
 
 Pipeline: coarse candidates on a thinned, voxelised cloud without its large planes, ranked
-and pre-screened (:mod:`.sonar_search`); the best few are re-fitted at full resolution inside
+and pre-screened (:mod:`.search`); the best few are re-fitted at full resolution inside
 a crop with the cone model and judged (residual scale against the sensor noise measured on the
 planes, coverage of the part of the disc the beams sampled, purity of the returns inside it,
 whether a surface continues its outline over a long arc, diameter). A sphere may rest on or
@@ -420,7 +420,7 @@ def detect_sphere_in_cloud(points_sonar_m: np.ndarray, sphere_radius_m: float,
             sphere: only points within ``seed_radius_m`` + a sphere's reach are searched, and
             the acceptable candidate nearest the pick wins.
         seed_radius_m: search radius around the seed (m).
-        rng_seed: key of the thinning and RANSAC draws (:mod:`.sonar_streams`; results are
+        rng_seed: key of the thinning and RANSAC draws (:mod:`.streams`; results are
             deterministic, and each cluster's draws depend on its own returns only).
 
     Returns:
@@ -707,7 +707,7 @@ def _size_notes(extras: dict, j: _Judged, r: float, cone: FitResult, method: str
     if other_size:
         size_note = seen
     elif np.isfinite(j.radius_cone_m) and abs(j.radius_cone_m - r) > DIAMETER_WARN * r:
-        size_note = seen + ": check the diameter or the beam width (sonar_beam.estimate_beam_width_deg)"
+        size_note = seen + ": check the diameter or the beam width (calib_core.detect.sonar.beam.estimate_beam_width_deg)"
     if size_note:
         extras["warning"] = "; ".join(w for w in (extras.get("warning"), size_note) if w)
     if other_size and method == "cone-model":

@@ -360,7 +360,7 @@ def find_candidates(points_m: np.ndarray, radius_m: float, half_angle_rad: float
                     max_candidates: int = 6) -> tuple[list[Candidate], dict]:
     """Sphere candidates in a cloud (sonar frame, m) for a sphere of nominal ``radius_m``.
 
-    ``key`` seeds the random draws (:mod:`.sonar_streams`): the thinning by the points' own
+    ``key`` seeds the random draws (:mod:`.streams`): the thinning by the points' own
     hashes, the plane search by a stream of its own, and each cluster's RANSAC by a stream
     seeded from that cluster's voxels, so what happens in one cluster (one more look, another
     object far away, the points' order) does not change the draws in another.

@@ -3,9 +3,9 @@
 For detector tests and benchmarks that need many varied clouds with exact ground truth and
 no camera rendering. The sensor sits at the world origin with the world axes (x forward,
 y left, z up), ``height_m`` above the floor; the ball is placed 1.2-4 m ahead, inside the
-sensor's field. Sensors: "lidar16", "rgbd" (:mod:`.range_sim`) or "sonar"
-(:mod:`.sonar_sim`, BV5000-like, 1 deg beams, coarse pan to stay fast), and the held-out ones
-the detector was not developed against (:mod:`.range_heldout`): "lidar128" (Ouster-like),
+sensor's field. Sensors: "lidar16", "rgbd" (:mod:`.sim`) or "sonar"
+(:mod:`..sonar_sim`, BV5000-like, 1 deg beams, coarse pan to stay fast), and the held-out ones
+the detector was not developed against (:mod:`.heldout`): "lidar128" (Ouster-like),
 "livox" (solid-state rosette) and "stereo" (RealSense-like active stereo).
 """
 

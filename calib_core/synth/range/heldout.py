@@ -1,6 +1,6 @@
 """Held-out range sensors: physics the detector was never developed against.
 
-Three sensors unlike the 16-ring LiDAR and the Kinect-like camera of :mod:`.range_sim`, to
+Three sensors unlike the 16-ring LiDAR and the Kinect-like camera of :mod:`.sim`, to
 measure the range-side detector on data it was not tuned to. Same conventions: the cloud in
 the SENSOR frame (x forward, y left, z up, metres), one optical ray per return through the
 shared scene (:func:`calib_core.synth.scene.raycast`).

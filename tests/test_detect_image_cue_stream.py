@@ -1,0 +1,38 @@
+"""The fourth (pattern) cue is a guess that counts only when it gives a clear outline: when it
+is discarded it must leave the detection's shared random stream as it found it, so that what
+draws after it (the host search around a clipped highlight) is what it would be without the
+cue (calib_core.detect.image.detect._more_cues)."""
+
+import numpy as np
+
+from calib_core.detect.image import detect as im
+from calib_core.detect.image.fit import CandidateFit
+from calib_core.detect.image.region import Candidate
+
+
+class _Look:
+    """Just what _more_cues uses; every refinement draws from the stream and finds nothing."""
+
+    def __init__(self):
+        self.rng, self.r_bounds, self.max_candidates = np.random.default_rng(0), (5.0, 200.0), 10
+
+    def contrast_candidates(self):
+        return []
+
+    def disc_candidates(self):
+        return []
+
+    def refine(self, c):
+        self.rng.random(5)
+        return CandidateFit(False, "no round outline")
+
+
+def test_a_discarded_pattern_guess_leaves_the_random_stream_untouched():
+    ang = np.linspace(0, 2 * np.pi, 6, endpoint=False)
+    blobs = [Candidate(np.array([200 + 14 * np.cos(a), 150 + 14 * np.sin(a)]), 6.0, (6.0, 6.0), 0.0, False,
+                       100.0, "votes") for a in ang]
+    assert im.enclosing_candidates(blobs, (5.0, 200.0))  # the cue proposes a circle here
+    look = _Look()
+    cands, fits = im._more_cues(look, blobs, [])
+    assert cands == blobs and fits == []  # discarded
+    assert look.rng.random() == np.random.default_rng(0).random()
