@@ -323,7 +323,7 @@ def _stereo_predictions(data: SessionData, detections: dict, only: set) -> dict:
     from calib_core.stereo.vouch import stereo_predictions
 
     stereo, cams = data.session.stereo, list(data.session.cameras)
-    if not stereo or len(cams) < 2:
+    if not stereo or len(cams) < 2 or not only:  # nothing detected afresh: no capture to predict for
         return {}
     full = {c: _camera_registration(data, detections, c, only)[:2] for c in cams}
     regs = {c: (res, len(cands)) for c, (res, cands) in full.items()}
