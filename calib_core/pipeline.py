@@ -120,10 +120,13 @@ def detect_session(session_or_data, detections: dict, progress: Progress | None 
     for cid, entry in _resolve_ambiguous_sonar(data, merged, only=set(auto)).items():
         auto[cid]["sonar"] = entry
     merged = merge_auto(detections, auto)
-    for (cid, cam), entry in _stereo_refusals(data, merged, only=set(auto)).items():
+    stereo = _stereo_predictions(data, merged, set(auto))
+    refusals = _stereo_refusals(data, merged, set(auto), stereo)
+    for (cid, cam), entry in refusals.items():
         auto[cid][cam] = entry
     merged = merge_auto(detections, auto)
-    stereo = _stereo_predictions(data, merged, set(auto))
+    if refusals:  # the refused centres leave the registrations: predict again without them
+        stereo = _stereo_predictions(data, merged, set(auto))
     for cam in data.session.cameras:
         for cid, entry in _resolve_ambiguous_images(data, merged, cam, set(auto), stereo.get(cam)).items():
             auto[cid][cam] = entry
@@ -356,15 +359,18 @@ def _support_centers(model, detections: dict, cam: str, res, cands: dict) -> np.
     return np.asarray(out, float).reshape(-1, 3)
 
 
-def _stereo_refusals(data: SessionData, detections: dict, only: set) -> dict:
+def _stereo_refusals(data: SessionData, detections: dict, only: set, stereo: dict | None = None) -> dict:
     """{(capture, camera): entry without a centre} for the plain automatic detections (among
-    captures in ``only``) that another camera's registration, carried by the stereo transform,
-    refuses (:func:`calib_core.stereo.vouch.refused`). The refused centre is kept in the entry."""
+    captures in ``only``) that another camera's registration, carried by the stereo transform
+    (``stereo``: :func:`_stereo_predictions` of these detections, computed when not given), refuses
+    (:func:`calib_core.stereo.vouch.refused`). The refused centre is kept in the entry."""
     from calib_core.detect.reasons import stereo_refusal_reason
     from calib_core.stereo.vouch import refused
 
     out = {}
-    for cam, preds in _stereo_predictions(data, detections, only).items():
+    if stereo is None:
+        stereo = _stereo_predictions(data, detections, only)
+    for cam, preds in stereo.items():
         for cid, p in preds.items():
             e = detections.get(cid, {}).get(cam)
             if (cid not in only or not e or e.get("status") != "auto" or e.get("center") is None
