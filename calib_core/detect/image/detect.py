@@ -30,11 +30,12 @@ import numpy as np
 
 from calib_core.camera import CameraModel
 from calib_core.detect.image.blur import blur_range_floor_m, clean_rms_px
-from calib_core.detect.image.fit import TIGHT_MIN_SUPPORT, CandidateFit, refine_candidate
+from calib_core.detect.image.fit import (OUTSIDE_MISMATCH_CLUTTER, PASS1_MAX_RMS_FRAC, PASS1_MAX_RMS_PX,
+                                         TIGHT_MIN_SUPPORT, CandidateFit, refine_candidate)
 from calib_core.detect.image.discs import candidates_by_discs
 from calib_core.detect.image.highlight import host_candidates, is_clipped_spot
 from calib_core.detect.image.hough import hough_circle
-from calib_core.detect.image.pattern import enclosing_candidates
+from calib_core.detect.image.pattern import MIN_GROWTH, enclosing_candidates, in_a_print, is_body, lies_inside
 from calib_core.detect.image.apparent_range import cone_range_sigma_m, outline_range_floor_m
 from calib_core.detect.image.score import features, probability
 from calib_core.detect.image.votes import candidates_by_votes
@@ -360,28 +361,45 @@ def _clear(fits) -> bool:
 
 
 def _more_cues(look, cands, fits):
-    """The cues after the round-outline votes, each only while no clear outline is found."""
+    """The cues after the round-outline votes, each only while no clear outline is found (or
+    the clear one may be an element of a ball's print: then the print's cue looks as well)."""
     if _clear(fits):
-        return cands, fits
+        return _print_cue(look, cands, fits) if _clear_in_print(look, cands, fits) else (cands, fits)
     # no clear round outline among the votes (none, or only ragged ones: clutter): region
     # contrast (an open mesh, a low-contrast outline) as the second cue
     more = _new_candidates(fits, look.contrast_candidates())
     cands = cands + more
     fits = fits + _refine_all(look, _in_order(more, look.max_candidates), False)
     if _clear(fits):
-        return cands, fits
+        return _print_cue(look, cands, fits) if _clear_in_print(look, cands, fits) else (cands, fits)
     # third cue: a disc whose colour stands out from a textured surround (a red ball
     # before red brick), where neither outline votes nor plain contrast put a candidate
     more = _new_candidates(fits, look.disc_candidates())
     cands = cands + more
     fits = fits + _refine_all(look, more[:DISC_CANDIDATES], False)  # best first, border or not
-    if _clear(fits):
+    if _clear(fits) and not _clear_in_print(look, cands, fits):
         return cands, fits
-    # fourth cue: a ball's print (pentagons, panels) made the small candidates: a cluster of them.
-    # A guess built from other candidates: it counts only when it gives a clear outline
-    # (discarded, it leaves the shared random stream as it found it: what draws after it, the
-    # host search around a clipped highlight, draws as without the cue)
-    more = _new_candidates(fits, enclosing_candidates(cands, look.r_bounds))
+    return _print_cue(look, cands, fits)
+
+
+def _clear_in_print(look, cands, fits) -> bool:
+    """Every clear outline found lies in a cluster of candidates much larger than itself
+    (:func:`~calib_core.detect.image.pattern.in_a_print`): maybe a pentagon of a football."""
+    clear = [f for _, f in fits if f.ok and f.score >= WEAK_FIT]
+    return bool(clear) and all(in_a_print(f, cands, look.r_bounds) for f in clear)
+
+
+def _print_cue(look, cands, fits):
+    """Fourth cue: a ball's print (pentagons, panels) made the small candidates: a cluster of them.
+    A guess built from other candidates: it counts only when it gives a clear outline
+    (discarded, it leaves the shared random stream as it found it: what draws after it, the
+    host search around a clipped highlight, draws as without the cue)."""
+    # (an outline much smaller than a cluster's circle does not stand for it: it may be one
+    # of the print's elements)
+    enc = enclosing_candidates(cands, look.r_bounds)
+    smaller = [(c, f) for c, f in fits if not (f.credible and enc and all(
+        MIN_GROWTH * _mean_radius(f.silhouette_px) <= e.radius_px for e in enc))]
+    more = _new_candidates(smaller, enc)
     state = look.rng.bit_generator.state
     fourth = _refine_all(look, more, False)
     if _clear(fourth):
@@ -473,9 +491,10 @@ def _new_candidates(fits, more: list[Candidate]) -> list[Candidate]:
     return out
 
 
-def _good_fits(fits):
+def _good_fits(fits, with_background: bool = False):
     """Accepted outlines, each object once (its best fit), none inside a larger fitted one."""
     fitted = [(c, f) for c, f in fits if f.credible]
+    bodies = _bodies(fits, with_background)
     good: list[tuple[Candidate, CandidateFit]] = []
     for c, f in sorted(fits, key=lambda cf: -cf[1].score):
         if not f.ok:
@@ -485,6 +504,10 @@ def _good_fits(fits):
         if any(_mean_radius(g.silhouette_px) > 2 * r_f and _inside(f.centre_uv_px, g.silhouette_px)
                for _, g in fitted):
             continue
+        # a print's element (a pentagon, a panel) wholly inside a ball's outline, even one
+        # refused as not round: the limb is the outermost closed contour of the body
+        if any(g is not f and lies_inside(f, g) for g in bodies):
+            continue
         # the same object found from two candidates: keep the better fit
         if not any(np.hypot(*(f.centre_uv_px - g.centre_uv_px)) < 0.8 * max(r_f, _mean_radius(g.silhouette_px))
                    for _, g in good):
@@ -493,9 +516,17 @@ def _good_fits(fits):
     return good
 
 
+def _bodies(fits, with_background: bool) -> list[CandidateFit]:
+    """Fitted outlines a print could lie on (:func:`~calib_core.detect.image.pattern.is_body`:
+    most of the outline seen, the surroundings outside it as :func:`~.fit._judge` asks of an
+    accepted outline, round to pass 1's standard)."""
+    limit = 0.2 if with_background else OUTSIDE_MISMATCH_CLUTTER
+    return [f for _, f in fits if is_body(f, limit, TIGHT_MIN_SUPPORT, PASS1_MAX_RMS_PX, PASS1_MAX_RMS_FRAC)]
+
+
 def _verdict(look, fits, cands, method, hinted: bool) -> ImageDetection:
     """Found (one clear outline), or why not (none, cut, hidden, two round objects)."""
-    good = _good_fits(fits)
+    good = _good_fits(fits, look.bg is not None)
     if not good:
         return _refusal(fits, cands, method)
     # a clean round outline refused only for being cut by the border (or partly hidden) that

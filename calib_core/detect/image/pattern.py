@@ -72,3 +72,51 @@ def enclosing_candidates(cands: list[Candidate], r_bounds_px: tuple[float, float
         if len(out) >= most:
             break
     return out
+
+
+# ---- a print's element accepted as the ball, inside the ball's own outline. The limb is the
+# outermost closed contour of one body: a round outline whose whole circle lies inside a larger
+# outline of a body (most of it seen, the surroundings just outside it, and round enough to be
+# worth refining, the pass-1 standard) is a pentagon, a panel or a seam's loop, whatever its
+# own roundness. "Inside" within the scatter of the larger outline's edges, and larger by more
+# than that scatter (a second fit of one outline differs by about it).
+BODY_SCATTER_SIGMAS = 2.0   # how far (x the larger outline's edge RMS) the inner one may reach past it
+BODY_MIN_EXCESS_SIGMAS = 3.0  # how much larger (x that RMS, and >= BODY_MIN_EXCESS_PX) the body must be
+BODY_MIN_EXCESS_PX = 2.0
+
+
+def _radius(sil: np.ndarray) -> float:
+    return float(np.mean(np.linalg.norm(sil - sil.mean(axis=0), axis=1)))
+
+
+def is_body(g, outside_limit: float, min_support: float, max_rms_px: float, max_rms_frac: float) -> bool:
+    """Whether fit ``g`` (:class:`~calib_core.detect.image.fit.CandidateFit`) is the outline
+    of a body a print could lie on: fitted wholly inside the image, on at least
+    ``min_support`` of its outline, the outside like the surroundings (mismatch at most
+    ``outside_limit``), edge RMS within max(``max_rms_px``, ``max_rms_frac`` x radius)."""
+    if g.fit is None or g.silhouette_px is None or not np.isfinite(g.silhouette_px).all():
+        return False
+    if g.reason.startswith(("sphere cut", "no round outline near the border")):
+        return False
+    r = _radius(g.silhouette_px)
+    return (g.support >= min_support and float(g.extras.get("outside_mismatch", 1.0)) <= outside_limit
+            and g.fit.sigma_px <= max(max_rms_px, max_rms_frac * r))
+
+
+def lies_inside(f, g) -> bool:
+    """Whether fit ``f``'s whole outline lies inside fit ``g``'s (up to BODY_SCATTER_SIGMAS of
+    ``g``'s edge RMS) and ``g`` is larger by more than its scatter."""
+    s_g = float(g.fit.sigma_px)
+    if _radius(g.silhouette_px) < _radius(f.silhouette_px) + max(BODY_MIN_EXCESS_PX, BODY_MIN_EXCESS_SIGMAS * s_g):
+        return False
+    poly = g.silhouette_px.astype(np.float32)
+    worst = min(cv2.pointPolygonTest(poly, (float(u), float(v)), True) for u, v in f.silhouette_px[::3])
+    return worst >= -BODY_SCATTER_SIGMAS * s_g
+
+
+def in_a_print(f, cands: list[Candidate], r_bounds_px: tuple[float, float]) -> bool:
+    """Whether accepted fit ``f`` lies in a cluster of candidates (:func:`enclosing_candidates`)
+    whose enclosing circle is MIN_GROWTH times larger than it: maybe one element of a print."""
+    r_f = _radius(f.silhouette_px)
+    return any(np.hypot(*(e.centre_px - f.centre_uv_px)) < e.radius_px and e.radius_px >= MIN_GROWTH * r_f
+               for e in enclosing_candidates(cands, r_bounds_px))
