@@ -22,15 +22,15 @@ def _fit(u, v, r, rms, support=1.0, outside=0.0, ok=True, reason=""):
 def test_an_outline_wholly_inside_a_larger_body_is_its_print():
     ball = _fit(300, 200, 70, rms=1.0, ok=False, reason="outline not round (edge RMS 1.0 px)")
     pent = _fit(270, 205, 20, rms=0.3)
-    assert is_body(ball, 0.35, 0.6, 2.5, 0.04) and lies_inside(pent, ball)
+    assert is_body(ball, 0.35, 0.6, 2.0) and lies_inside(pent, ball)
     assert not lies_inside(ball, pent)
     # straddling the limb: not inside; a second fit of the same outline, a little larger: not a print
     assert not lies_inside(_fit(360, 200, 20, rms=0.3), ball)
     assert not lies_inside(_fit(301, 200, 69, rms=0.3), ball)
-    # a body must be mostly seen, like its surroundings outside, and round to pass 1's standard
-    assert not is_body(_fit(300, 200, 70, rms=1.0, support=0.5), 0.35, 0.6, 2.5, 0.04)
-    assert not is_body(_fit(300, 200, 70, rms=1.0, outside=0.5), 0.35, 0.6, 2.5, 0.04)
-    assert not is_body(_fit(300, 200, 70, rms=3.5), 0.35, 0.6, 2.5, 0.04)
+    # a body must be mostly seen, like its surroundings outside, and at most twice the roundness limit
+    assert not is_body(_fit(300, 200, 70, rms=1.0, support=0.5), 0.35, 0.6, 2.0)
+    assert not is_body(_fit(300, 200, 70, rms=1.0, outside=0.5), 0.35, 0.6, 2.0)
+    assert not is_body(_fit(300, 200, 70, rms=2.0), 0.35, 0.6, 2.0)
     good = im._good_fits([(None, ball), (None, pent)])
     assert good == []  # the pentagon dropped; the ball itself was refused
 
@@ -55,3 +55,11 @@ def test_a_circle_on_noise_peaks_in_a_square_is_no_outline():
     # 0.99 from edges 1.5 px wide (narrower than any step after the smoothing)
     case = render_case("sports", 1093, 0.5, with_ball=False)
     assert not im.detect_sphere_in_image(case.image, case.cam, case.radius_m).found
+
+
+def test_a_ball_inside_a_rough_circle_through_clutter_is_kept():
+    # tennis ball in a hand (jpeg + gain + shake 5.8 px): a circle through a block's edges
+    # around it (2.3 px RMS at r 75, 2.5x the roundness limit) is no body
+    case = render_case("sports", 1091, 0.5)
+    det = im.detect_sphere_in_image(case.image, case.cam, case.radius_m)
+    assert det.found and np.hypot(*(det.center_uv_px - case.true_uv_px)) < 0.5

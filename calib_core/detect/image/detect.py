@@ -30,8 +30,8 @@ import numpy as np
 
 from calib_core.camera import CameraModel
 from calib_core.detect.image.blur import blur_range_floor_m, clean_rms_px
-from calib_core.detect.image.fit import (OUTSIDE_MISMATCH_CLUTTER, PASS1_MAX_RMS_FRAC, PASS1_MAX_RMS_PX,
-                                         TIGHT_MIN_SUPPORT, CandidateFit, refine_candidate)
+from calib_core.detect.image.fit import (OUTSIDE_MISMATCH_CLUTTER, TIGHT_MIN_SUPPORT, TIGHT_RMS_FRACTION,
+                                         CandidateFit, refine_candidate)
 from calib_core.detect.image.discs import candidates_by_discs
 from calib_core.detect.image.highlight import host_candidates, is_clipped_spot
 from calib_core.detect.image.hough import hough_circle
@@ -519,9 +519,10 @@ def _good_fits(fits, with_background: bool = False):
 def _bodies(fits, with_background: bool) -> list[CandidateFit]:
     """Fitted outlines a print could lie on (:func:`~calib_core.detect.image.pattern.is_body`:
     most of the outline seen, the surroundings outside it as :func:`~.fit._judge` asks of an
-    accepted outline, round to pass 1's standard)."""
+    accepted outline, at most 1 / TIGHT_RMS_FRACTION times as rough as an accepted outline may
+    be: the tight refit's standard is half the limit, a body's is twice it)."""
     limit = 0.2 if with_background else OUTSIDE_MISMATCH_CLUTTER
-    return [f for _, f in fits if is_body(f, limit, TIGHT_MIN_SUPPORT, PASS1_MAX_RMS_PX, PASS1_MAX_RMS_FRAC)]
+    return [f for _, f in fits if is_body(f, limit, TIGHT_MIN_SUPPORT, 1.0 / TIGHT_RMS_FRACTION)]
 
 
 def _verdict(look, fits, cands, method, hinted: bool) -> ImageDetection:

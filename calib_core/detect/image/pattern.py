@@ -18,6 +18,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
+from calib_core.detect.image.blur import outline_rms_limit_px
 from calib_core.detect.image.region import Candidate
 
 LINK = 1.5
@@ -76,8 +77,8 @@ def enclosing_candidates(cands: list[Candidate], r_bounds_px: tuple[float, float
 
 # ---- a print's element accepted as the ball, inside the ball's own outline. The limb is the
 # outermost closed contour of one body: a round outline whose whole circle lies inside a larger
-# outline of a body (most of it seen, the surroundings just outside it, and round enough to be
-# worth refining, the pass-1 standard) is a pentagon, a panel or a seam's loop, whatever its
+# outline of a body (most of it seen, the surroundings just outside it, and at most twice as
+# rough as an accepted outline may be) is a pentagon, a panel or a seam's loop, whatever its
 # own roundness. "Inside" within the scatter of the larger outline's edges, and larger by more
 # than that scatter (a second fit of one outline differs by about it).
 BODY_SCATTER_SIGMAS = 2.0   # how far (x the larger outline's edge RMS) the inner one may reach past it
@@ -89,18 +90,22 @@ def _radius(sil: np.ndarray) -> float:
     return float(np.mean(np.linalg.norm(sil - sil.mean(axis=0), axis=1)))
 
 
-def is_body(g, outside_limit: float, min_support: float, max_rms_px: float, max_rms_frac: float) -> bool:
+def is_body(g, outside_limit: float, min_support: float, rms_limits: float) -> bool:
     """Whether fit ``g`` (:class:`~calib_core.detect.image.fit.CandidateFit`) is the outline
     of a body a print could lie on: fitted wholly inside the image, on at least
     ``min_support`` of its outline, the outside like the surroundings (mismatch at most
-    ``outside_limit``), edge RMS within max(``max_rms_px``, ``max_rms_frac`` x radius)."""
+    ``outside_limit``), edge RMS within ``rms_limits`` times the roundness limit of its radius
+    and edge width (:func:`~calib_core.detect.image.blur.outline_rms_limit_px`; the print
+    meeting the limb moves its edge: a black pentagon against a dark background, a white
+    hexagon against it)."""
     if g.fit is None or g.silhouette_px is None or not np.isfinite(g.silhouette_px).all():
         return False
     if g.reason.startswith(("sphere cut", "no round outline near the border")):
         return False
     r = _radius(g.silhouette_px)
+    width = float(g.extras.get("edge_width_px", np.nan)) if g.support >= min_support else np.nan
     return (g.support >= min_support and float(g.extras.get("outside_mismatch", 1.0)) <= outside_limit
-            and g.fit.sigma_px <= max(max_rms_px, max_rms_frac * r))
+            and g.fit.sigma_px <= rms_limits * outline_rms_limit_px(r, width))
 
 
 def lies_inside(f, g) -> bool:
