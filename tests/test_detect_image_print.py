@@ -22,17 +22,20 @@ def _fit(u, v, r, rms, support=1.0, outside=0.0, ok=True, reason=""):
 def test_an_outline_wholly_inside_a_larger_body_is_its_print():
     ball = _fit(300, 200, 70, rms=1.0, ok=False, reason="outline not round (edge RMS 1.0 px)")
     pent = _fit(270, 205, 20, rms=0.3)
-    assert is_body(ball, 0.35, 0.6, 2.0) and lies_inside(pent, ball)
+    assert is_body(ball, 0.2, 0.6, 2.0) and lies_inside(pent, ball)
     assert not lies_inside(ball, pent)
     # straddling the limb: not inside; a second fit of the same outline, a little larger: not a print
     assert not lies_inside(_fit(360, 200, 20, rms=0.3), ball)
     assert not lies_inside(_fit(301, 200, 69, rms=0.3), ball)
     # a body must be mostly seen, like its surroundings outside, and at most twice the roundness limit
-    assert not is_body(_fit(300, 200, 70, rms=1.0, support=0.5), 0.35, 0.6, 2.0)
-    assert not is_body(_fit(300, 200, 70, rms=1.0, outside=0.5), 0.35, 0.6, 2.0)
-    assert not is_body(_fit(300, 200, 70, rms=2.0), 0.35, 0.6, 2.0)
+    assert not is_body(_fit(300, 200, 70, rms=1.0, support=0.5), 0.2, 0.6, 2.0)
+    assert not is_body(_fit(300, 200, 70, rms=1.0, outside=0.5), 0.2, 0.6, 2.0)
+    assert not is_body(_fit(300, 200, 70, rms=2.0), 0.2, 0.6, 2.0)
     good = im._good_fits([(None, ball), (None, pent)])
     assert good == []  # the pentagon dropped; the ball itself was refused
+    # a circle run through clutter around a ball: the clutter goes on outside it
+    clutter = _fit(300, 200, 70, rms=1.0, outside=0.27, ok=False, reason="outline not round (edge RMS 1.0 px)")
+    assert im._good_fits([(None, clutter), (None, pent)])[0][1] is pent
 
 
 def test_a_clear_pentagon_lets_the_pattern_cue_find_the_ball():
@@ -63,3 +66,11 @@ def test_a_ball_inside_a_rough_circle_through_clutter_is_kept():
     case = render_case("sports", 1091, 0.5)
     det = im.detect_sphere_in_image(case.image, case.cam, case.radius_m)
     assert det.found and np.hypot(*(det.center_uv_px - case.true_uv_px)) < 0.5
+
+
+def test_a_ball_inside_a_circle_through_clutter_is_kept():
+    # volleyball on the floor (jpeg + shake): a circle through clutter around it (r 115, 1.95x
+    # the roundness limit, outside mismatch 0.27) is no body
+    case = render_case("sports", 1000, 0.5)
+    det = im.detect_sphere_in_image(case.image, case.cam, case.radius_m)
+    assert det.found and np.hypot(*(det.center_uv_px - case.true_uv_px)) < 1.5

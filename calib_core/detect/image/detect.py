@@ -30,8 +30,7 @@ import numpy as np
 
 from calib_core.camera import CameraModel
 from calib_core.detect.image.blur import blur_range_floor_m, clean_rms_px
-from calib_core.detect.image.fit import (OUTSIDE_MISMATCH_CLUTTER, TIGHT_MIN_SUPPORT, TIGHT_RMS_FRACTION,
-                                         CandidateFit, refine_candidate)
+from calib_core.detect.image.fit import TIGHT_MIN_SUPPORT, TIGHT_RMS_FRACTION, CandidateFit, refine_candidate
 from calib_core.detect.image.discs import candidates_by_discs
 from calib_core.detect.image.highlight import host_candidates, is_clipped_spot
 from calib_core.detect.image.hough import hough_circle
@@ -491,10 +490,10 @@ def _new_candidates(fits, more: list[Candidate]) -> list[Candidate]:
     return out
 
 
-def _good_fits(fits, with_background: bool = False):
+def _good_fits(fits):
     """Accepted outlines, each object once (its best fit), none inside a larger fitted one."""
     fitted = [(c, f) for c, f in fits if f.credible]
-    bodies = _bodies(fits, with_background)
+    bodies = _bodies(fits)
     good: list[tuple[Candidate, CandidateFit]] = []
     for c, f in sorted(fits, key=lambda cf: -cf[1].score):
         if not f.ok:
@@ -516,18 +515,22 @@ def _good_fits(fits, with_background: bool = False):
     return good
 
 
-def _bodies(fits, with_background: bool) -> list[CandidateFit]:
+def _bodies(fits) -> list[CandidateFit]:
     """Fitted outlines a print could lie on (:func:`~calib_core.detect.image.pattern.is_body`:
-    most of the outline seen, the surroundings outside it as :func:`~.fit._judge` asks of an
-    accepted outline, at most 1 / TIGHT_RMS_FRACTION times as rough as an accepted outline may
-    be: the tight refit's standard is half the limit, a body's is twice it)."""
-    limit = 0.2 if with_background else OUTSIDE_MISMATCH_CLUTTER
-    return [f for _, f in fits if is_body(f, limit, TIGHT_MIN_SUPPORT, 1.0 / TIGHT_RMS_FRACTION)]
+    most of the outline seen, the surroundings just outside it as :func:`~.fit._judge` asks of a
+    credible outline (BODY_OUTSIDE_MISMATCH, with or without a background: a circle run through
+    clutter around a ball has clutter's edges on it, and the clutter goes on beyond them), at
+    most 1 / TIGHT_RMS_FRACTION times as rough as an accepted outline may be: the tight refit's
+    standard is half the limit, a body's twice it)."""
+    return [f for _, f in fits if is_body(f, BODY_OUTSIDE_MISMATCH, TIGHT_MIN_SUPPORT, 1.0 / TIGHT_RMS_FRACTION)]
+
+
+BODY_OUTSIDE_MISMATCH = 0.2  # the credible outline's limit (fit._judge)
 
 
 def _verdict(look, fits, cands, method, hinted: bool) -> ImageDetection:
     """Found (one clear outline), or why not (none, cut, hidden, two round objects)."""
-    good = _good_fits(fits, look.bg is not None)
+    good = _good_fits(fits)
     if not good:
         return _refusal(fits, cands, method)
     # a clean round outline refused only for being cut by the border (or partly hidden) that
