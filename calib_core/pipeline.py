@@ -219,7 +219,7 @@ def _resolve_round(data: SessionData, detections: dict, cam: str, only: set, ste
         return {}
     model = data.camera(cam)
     res, cands, missing = registration or _camera_registration(data, detections, cam, only)
-    out = {}
+    out = _looks_on_three(data, detections, cam, only, cands, missing) if res.T_cam_sonar is None else {}
     for cid, ((u, v, rng_m), why) in _looks(res, cands, missing, detections, cam, only).items():
         radius_px = model.fx * data.session.sphere_radius_m / max(rng_m, 1e-6)
         entry = detect_image_entry(data, cid, cam, hint_uv_px=(u, v), hint_radius_px=radius_px)
@@ -242,6 +242,47 @@ def _resolve_round(data: SessionData, detections: dict, cam: str, only: set, ste
         if cid in missing and cid not in out and cid not in own and detections[cid][cam].get("status") == "auto":
             out[cid] = _look_at_stereo(data, cid, cam, p, detections[cid][cam])
     return {cid: e for cid, e in out.items() if e is not None}
+
+
+def _looks_on_three(data: SessionData, detections: dict, cam: str, only: set, cands: dict, missing: list) -> dict:
+    """{capture: entry} of the looks at the places a registration on exactly 3 plain detections
+    predicts (:func:`calib_core.disambiguate.three.register_on_three`), when at least
+    PREDICTION_MIN_CHECKS of them find the sphere; else {}.
+
+    Such a registration cannot check itself, so its looks are its checks: a look counts only where
+    the registration's expected error is at most CHECKED_MAX_ERROR_PX (its sensitivity to a 1.5 %
+    range error of one plain detection), with a window that size, and only when it finds an outline
+    of the predicted size (its range agrees) within CHECK_MAX_PX of the predicted place. A wrong
+    registration predicts places where no such outline is; a look that finds nothing keeps the
+    capture's first entry. The kept looks then join the plain detections in the next round
+    (:func:`_resolve_ambiguous_images`), whose registration on 5 or more predicts the rest."""
+    from calib_core.disambiguate.three import register_on_three
+
+    plain = [c for c, k in cands.items() if len(k) == 1 and c not in missing and range_is_measured(detections[c][cam])]
+    todo = [c for c in missing if c in only and detections[c][cam].get("status") == "auto"]
+    if len(plain) != 3 or len(todo) < PREDICTION_MIN_CHECKS:
+        return {}
+    centers = _sonar_centers(detections)
+    res = register_on_three(data.camera(cam), centers, cands, plain, todo)
+    if res is None:
+        return {}
+    found = {}
+    for cid, (u, v, rng_m) in res.predicted_uvr.items():
+        sigma = res.sigma_px.get(cid, float("inf"))
+        if not sigma <= CHECKED_MAX_ERROR_PX:
+            continue
+        radius_px = data.camera(cam).fx * data.session.sphere_radius_m / max(rng_m, 1e-6)
+        hint = {"hint_uv_px": [round(float(u), 3), round(float(v), 3)], "hint_radius_px": round(float(radius_px), 3)}
+        entry = _look_at_prediction(data, cid, cam, (u, v, rng_m), (max(res.residual_px, sigma), ""), detections[cid][cam], hint)
+        if entry is not None and entry.get("center") is not None and np.hypot(entry["center"][0] - u, entry["center"][1] - v) <= CHECK_MAX_PX:
+            found[cid] = entry
+    if len(found) < PREDICTION_MIN_CHECKS:
+        return {}
+    phrase = (f"registration on 3 captures, {res.residual_px:.1f} px, confirmed by {len(found)} looks at its predictions "
+              f"within {CHECK_MAX_PX:.0f} px")
+    for entry in found.values():
+        entry["resolved_by"] = f"sonar-guided second look at the predicted place and size ({phrase})"
+    return found
 
 
 def _look_at_stereo(data: SessionData, cid: str, cam: str, p, first: dict) -> dict | None:
