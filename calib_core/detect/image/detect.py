@@ -383,9 +383,12 @@ def _more_cues(look, cands, fits):
 
 def _clear_in_print(look, cands, fits) -> bool:
     """Every clear outline found lies in a cluster of candidates much larger than itself
-    (:func:`~calib_core.detect.image.pattern.in_a_print`): maybe a pentagon of a football."""
+    (:func:`~calib_core.detect.image.pattern.in_a_print`): maybe a pentagon of a football. Not
+    when one of them is a clean, confident outline (DOMINANT_SCORE: an open mesh's holes
+    cluster around the whole ball's outline; looking again there only costs time)."""
     clear = [f for _, f in fits if f.ok and f.score >= WEAK_FIT]
-    return bool(clear) and all(in_a_print(f, cands, look.r_bounds) for f in clear)
+    return (bool(clear) and all(f.score < DOMINANT_SCORE for f in clear)
+            and all(in_a_print(f, cands, look.r_bounds) for f in clear))
 
 
 def _print_cue(look, cands, fits):
