@@ -81,17 +81,16 @@ def _box(lo, hi, rng, glass_side: int):
     return prims
 
 
-def _place(rng, cam, T_wc, radius, scale):
+def _place(rng, cam, T_wc, radius, scale, holder: str):
     eye = hp.eye_of(T_wc)
 
-    def ok(c):
-        return 0.3 < c[0] - eye[0] and abs(c[2] - eye[2]) < 2.5
+    def ok(c):  # in front; resting on the floor: the floor below the camera
+        return 0.3 < c[0] - eye[0] and abs(c[2] - eye[2]) < 2.5 and (holder != "floor" or c[2] - radius < eye[2] - 0.3)
     return hp.place_by_size(rng, cam, T_wc, radius, (30.0 * scale, 0.45 * cam.height_px), ok)
 
 
-def _tank_geometry(rng, eye, c, radius):
-    """Tank bounds (lo, hi), its surface height, the glass side (0 = none) and the holder."""
-    holder = str(rng.choice(["rope", "pole", "tether", "floor"]))
+def _tank_geometry(rng, eye, c, radius, holder):
+    """Tank bounds (lo, hi), its surface height and the glass side (0 = none)."""
     near_surface = rng.random() < 0.6
     gap = float(np.exp(rng.uniform(np.log(0.01), np.log(0.4))))
     top = c[2] + radius + (gap if near_surface else rng.uniform(0.3, 1.5))
@@ -104,7 +103,7 @@ def _tank_geometry(rng, eye, c, radius):
     far_y = eye[1] - side * rng.uniform(1.0, 3.0)
     lo = np.array([eye[0] - rng.uniform(0.5, 1.5), min(near_y, far_y), floor_z])
     hi = np.array([max(c[0] + radius + 0.3, eye[0] + 2.5) + rng.uniform(0.0, 4.0), max(near_y, far_y), surface_z])
-    return lo, hi, surface_z, glass_side, holder
+    return lo, hi, surface_z, glass_side
 
 
 def _holder(rng, holder, c, radius, floor_z, surface_z) -> list:
@@ -143,9 +142,10 @@ def _mirrors(rng, lo, hi, surface_z, glass_side) -> list:
 def tank(rng, rig, cam, T_wc, scale, with_ball, opts):
     T_wc = _pose(rng, T_wc)
     radius = float(rng.uniform(0.05, 0.2))
-    c = _place(rng, cam, T_wc, radius, scale)
+    holder = str(rng.choice(["rope", "pole", "tether", "floor"]))
+    c = _place(rng, cam, T_wc, radius, scale, holder)
     eye = hp.eye_of(T_wc)
-    lo, hi, surface_z, glass_side, holder = _tank_geometry(rng, eye, c, radius)
+    lo, hi, surface_z, glass_side = _tank_geometry(rng, eye, c, radius, holder)
     water = _pool_water(rng)
     alb = np.array(FLOATS[int(rng.integers(len(FLOATS)))]) * rng.uniform(0.85, 1.05)
     ball = Sphere(tuple(c), radius, Material(tuple(np.clip(alb, 0, 1)), 0.9, "foam", 0.02,
