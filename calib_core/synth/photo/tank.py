@@ -143,7 +143,11 @@ def tank(rng, rig, cam, T_wc, scale, with_ball, opts):
     T_wc = _pose(rng, T_wc)
     radius = float(rng.uniform(0.05, 0.2))
     holder = str(rng.choice(["rope", "pole", "tether", "floor"]))
-    c = _place(rng, cam, T_wc, radius, scale, holder)
+    try:
+        c = _place(rng, cam, T_wc, radius, scale, holder)
+    except RuntimeError:  # the floor below the camera is out of view (looking up): held on a rope instead
+        holder = "rope"
+        c = _place(rng, cam, T_wc, radius, scale, holder)
     eye = hp.eye_of(T_wc)
     lo, hi, surface_z, glass_side = _tank_geometry(rng, eye, c, radius, holder)
     water = _pool_water(rng)
