@@ -24,8 +24,9 @@ from calib_core.detect.image.cone import (ConeFit, centre_uv_and_cov, fit_cone, 
 from calib_core.detect.image.edges import (edge_peaks, edge_widths, gradient_magnitude, outward_normals,
                                            pick_edges, ray_directions, sample_profiles, smooth_roi)
 from calib_core.detect.image.blur import (BLUR_MAX_RADIUS_FRACTION, CLEAN_RMS_FRAC, CLEAN_RMS_PX,  # noqa: F401
-                                          SHARP_EDGE_WIDTH_PX, SMALL_RADIUS_PX, blur_floor_px2, clean_rms_px,
+                                          SHARP_EDGE_WIDTH_PX, SMALL_RADIUS_PX, blur_floor_px2, clean_rms_px, is_blurred,
                                           outline_rms_limit_px)
+from calib_core.detect.image import smear
 from calib_core.detect.image.region import Candidate
 
 SMOOTH_SIGMA_PX = 1.0
@@ -400,6 +401,9 @@ def _fitted(cam, sig: _Signal, p2, R: float, sphere_radius_m: float) -> tuple[Ca
     visible = cam.in_image(sil_f, margin_px=0.05 * R + 8)
     outside_bad = _outside_mismatch(sig, sil_f[visible], outward_normals(sil_f, sil_f.mean(axis=0))[visible], R) \
         if visible.sum() >= 8 else 1.0
+    if fit.smear is not None:  # (read as a motion smear: its measured length and direction)
+        res.extras["smear_px"] = round(fit.smear.length_px, 2)
+        res.extras["smear_deg"] = round(float(np.degrees(fit.smear.angle_rad)), 1)
     res.extras["outside_mismatch"] = round(outside_bad, 4)
     res.extras["outline_coverage"] = round(support, 3)
     return res, outside_bad
@@ -463,6 +467,13 @@ def _pass2(cam, sig, fit1: ConeFit, R: float, a_range_rad, rng):
         alt = _pass2_several(cam, sig, fit1, R, a_range_rad, geo, max(half, PASS2_SEVERAL_HALF_FRAC * R))
         if alt is not None and _searched_held(cam, sig, alt, R) and (best is None or _quality(alt[0]) > _quality(best[0])):
             best = alt
+    if R >= SMALL_RADIUS_PX and (best is None or is_blurred(_median_width(best))
+                                 or best[0].sigma_px > outline_rms_limit_px(R, _median_width(best))):
+        # a blurred or ragged outline: read it as a motion smear's ramps when the edge widths
+        # around it say the blur is one (smear.py)
+        alt = _pass2_smear(cam, sig, fit1, R, a_range_rad, geo, half)
+        if alt is not None and _smear_held(alt, R) and (best is None or _quality(alt[0]) > _quality(best[0])):
+            best = alt
     for s in BLUR_SCALES_PX:
         if best is not None and best[0].sigma_px <= outline_rms_limit_px(R, _median_width(best)):
             break
@@ -472,6 +483,52 @@ def _pass2(cam, sig, fit1: ConeFit, R: float, a_range_rad, rng):
         if alt is not None and _smoothed_held(alt, R) and (best is None or _quality(alt[0]) > _quality(best[0])):
             best = alt
     return best
+
+
+def _pass2_smear(cam, sig: _Signal, fit1: ConeFit, R: float, a_range_rad, geo, half: float):
+    """Pass 2 read as a motion smear (:mod:`calib_core.detect.image.smear`): each normal's edge
+    is the middle of the ramp its profile matches best, at the width the smear measured around
+    the outline predicts there; None unless that smear is real (its anisotropy stands out from
+    its standard error). An edge must stand for a colour step the region's noise and texture do
+    not make (a step whose sharp gradient would pass pass 2's EDGE_NOISE_FACTOR) and at least
+    0.3 of the typical step (as pass 2's readings). Same return as :func:`_pass2_reading`, the
+    widths being the smear model's; its own random stream."""
+    sil, sil_xy, nrm, k2, perim = geo
+    reach = smear.window_px(R)
+    t2 = np.arange(-half - reach, half + reach + 0.25, smear.STEP_PX)
+    use = cam.in_image(sil, margin_px=1.0) & sig.covers(sil, half + reach + 1.0)
+    if use.sum() < 12:
+        return None
+    theta = np.arctan2(nrm[use, 1], nrm[use, 0])
+    te, step, w_k, sm = smear.read(sig.colour_profiles(sil[use], nrm[use], t2), t2, np.abs(t2) <= half, theta,
+                                   R, max(1.0, CORR_LENGTH_PX * k2 / perim))
+    if not sm.real:
+        return None
+    keep = step >= max(0.3 * float(np.median(step)), EDGE_NOISE_FACTOR * sig.noise * np.sqrt(2 * np.pi) * SMOOTH_SIGMA_PX)
+    ok2 = np.zeros(k2, bool)
+    ok2[np.flatnonzero(use)[keep]] = True
+    if ok2.sum() < 12:
+        return None
+    uv2 = sil[ok2] + te[keep, None] * nrm[ok2]
+    xy2 = normalize_near(cam, uv2, sil_xy[ok2], iterations=3)
+    fit = _pass2_fit(cam, xy2, fit1, R, a_range_rad, np.random.default_rng(k2), k2, perim)
+    # (the smear at most MAX_RADIUS_FRACTION of the fitted outline's radius, as of the bank's)
+    if fit is None or sm.length_px > smear.MAX_RADIUS_FRACTION * cam.fx * np.tan(fit.a_rad):
+        return None
+    fit.reading = "smear"
+    fit.smear = sm
+    s2 = np.zeros(k2)
+    s2[ok2] = step[keep] / (np.sqrt(2 * np.pi) * SMOOTH_SIGMA_PX)  # (as a sharp step's gradient peak)
+    return fit, ok2, s2, k2, w_k[keep]
+
+
+def _smear_held(p2, R: float) -> bool:
+    """A smear reading's fit held to the tight refit's standard (it is searched for among ramp
+    widths and positions): TIGHT_MIN_SUPPORT of the normals, edge RMS within TIGHT_RMS_FRACTION
+    of the roundness limit of its edge width."""
+    fit, _, _, k2, _ = p2
+    return (fit.inliers.sum() >= TIGHT_MIN_SUPPORT * k2
+            and fit.sigma_px <= TIGHT_RMS_FRACTION * outline_rms_limit_px(R, _median_width(p2)))
 
 
 # the several-edges reading of pass 2 looks this far (x the coarse radius) either side of the
