@@ -91,6 +91,7 @@ class _Signal:
     def __init__(self, image: np.ndarray, background: np.ndarray | None, box):
         x0, y0, x1, y1 = box
         self.origin, self.box = (float(x0), float(y0)), box
+        self._source = (image, background)  # (for :meth:`around`)
         self.diff = None
         if background is not None:
             d = cv2.subtract(image[y0:y1, x0:x1].astype(np.float32), background[y0:y1, x0:x1])
@@ -102,6 +103,20 @@ class _Signal:
         else:
             self.img = smooth_roi(image, x0, y0, x1, y1, SMOOTH_SIGMA_PX)
         self._noise = None
+
+    def around(self, pts: np.ndarray, margin_px: float) -> "_Signal":
+        """This signal, or the same over a region widened to hold ``pts`` (K,2 px) and their
+        ``margin_px`` neighbourhood (a reading that looks farther than the region was cut for:
+        the smear's ramp windows; the region is sized from the candidate's coarse radius)."""
+        if self.covers(pts, margin_px).all() or not np.isfinite(pts).all():
+            return self
+        image, background = self._source
+        H, W = image.shape[:2]
+        lo, hi = pts.min(axis=0) - margin_px - 2, pts.max(axis=0) + margin_px + 3
+        x0, y0, x1, y1 = self.box
+        box = (max(0, min(x0, int(lo[0]))), max(0, min(y0, int(lo[1]))),
+               min(W, max(x1, int(hi[0]))), min(H, max(y1, int(hi[1]))))
+        return _Signal(image, background, box)
 
     def covers(self, pts: np.ndarray, margin_px: float) -> np.ndarray:
         """(K,) True where a point and its ``margin_px`` neighbourhood lie in the region (outside
@@ -472,7 +487,7 @@ def _pass2(cam, sig, fit1: ConeFit, R: float, a_range_rad, rng):
         # a blurred or ragged outline: read it as a motion smear's ramps when the edge widths
         # around it say the blur is one (smear.py)
         alt = _pass2_smear(cam, sig, fit1, R, a_range_rad, geo, half)
-        if alt is not None and _smear_held(alt, R) and (best is None or _quality(alt[0]) > _quality(best[0])):
+        if alt is not None and _smear_held(cam, sig, alt, R) and (best is None or _quality(alt[0]) > _quality(best[0])):
             best = alt
     for s in BLUR_SCALES_PX:
         if best is not None and best[0].sigma_px <= outline_rms_limit_px(R, _median_width(best)):
@@ -496,6 +511,7 @@ def _pass2_smear(cam, sig: _Signal, fit1: ConeFit, R: float, a_range_rad, geo, h
     sil, sil_xy, nrm, k2, perim = geo
     reach = smear.window_px(R)
     t2 = np.arange(-half - reach, half + reach + 0.25, smear.STEP_PX)
+    sig = sig.around(sil, half + reach + 1.0)
     use = cam.in_image(sil, margin_px=1.0) & sig.covers(sil, half + reach + 1.0)
     if use.sum() < 12:
         return None
@@ -522,13 +538,19 @@ def _pass2_smear(cam, sig: _Signal, fit1: ConeFit, R: float, a_range_rad, geo, h
     return fit, ok2, s2, k2, w_k[keep]
 
 
-def _smear_held(p2, R: float) -> bool:
-    """A smear reading's fit held to the tight refit's standard (it is searched for among ramp
-    widths and positions): TIGHT_MIN_SUPPORT of the normals, edge RMS within TIGHT_RMS_FRACTION
-    of the roundness limit of its edge width."""
+def _smear_held(cam, sig: _Signal, p2, R: float) -> bool:
+    """A smear reading's fit held like the other outlines searched for (:func:`_outline_held`:
+    the tight refit's standard for its edge width, the surroundings just outside it, one hue
+    inside per long arc with a colour step across the outline on each): it is searched for among
+    ramp widths and positions, and oriented texture (brick courses) has edge widths that vary with
+    the angle as a smear's do."""
     fit, _, _, k2, _ = p2
-    return (fit.inliers.sum() >= TIGHT_MIN_SUPPORT * k2
-            and fit.sigma_px <= TIGHT_RMS_FRACTION * outline_rms_limit_px(R, _median_width(p2)))
+    sil = silhouette_uv(cam, fit.w, fit.a_rad, n=k2)
+    visible = cam.in_image(sil, margin_px=0.05 * R + 8)
+    if visible.sum() < 8 or not np.isfinite(sil).all():
+        return False
+    outside_bad = _outside_mismatch(sig, sil[visible], outward_normals(sil, sil.mean(axis=0))[visible], R)
+    return _outline_held(sig, fit, float(fit.inliers.sum()) / k2, _median_width(p2), sil, R, outside_bad, need_step=True)
 
 
 # the several-edges reading of pass 2 looks this far (x the coarse radius) either side of the

@@ -39,6 +39,10 @@ BANK_PX = (0.0, 1.5, 3.0, 4.5, 6.0, 8.0, 10.0, 12.5, 15.0, 18.0, 22.0, 27.0, 33.
 MAX_RADIUS_FRACTION = 0.5
 # a real smear: the anisotropy's amplitude this many standard errors above zero
 SMEAR_SIGMAS = 3.0
+# a sharp photograph's edge (blur.SHARP_EDGE_WIDTH_PX, the FWHM of its gradient after a
+# BASE_SIGMA_PX smoothing: a Gaussian blur of sigma s = sqrt((FWHM / 2.3548)^2 - BASE^2)) as the
+# width of the linear ramp of the same variance (w^2 / 12 = s^2): ~4.8 px
+SHARP_RAMP_PX = float(np.sqrt(12.0 * ((SHARP_EDGE_WIDTH_PX / 2.3548) ** 2 - BASE_SIGMA_PX ** 2)))
 
 
 @dataclass
@@ -103,10 +107,11 @@ def measure(theta: np.ndarray, widths: np.ndarray, corr_points: float) -> Smear:
     cov = scale ** 2 * np.linalg.pinv((A * wt[:, None]).T @ A) * max(corr_points, 1.0)
     # (the amplitude's standard error: the larger of the two anisotropy terms' errors)
     sd = float(np.sqrt(max(cov[1, 1], cov[2, 2])))
-    # across the motion the edge is not smeared: the narrowest width the fit gives must be a sharp
-    # edge's (oriented texture, brick courses, makes widths that vary with the angle too, but no
-    # sharp edge where they are narrowest)
-    real = amp > SMEAR_SIGMAS * sd and np.sqrt(max(b[0] - amp, 0.0)) <= SHARP_EDGE_WIDTH_PX
+    # across the motion the edge is not smeared: the narrowest width squared the fit gives,
+    # b0 - amp, must be a sharp edge's within its standard error (oriented texture, brick
+    # courses, makes widths that vary with the angle too, but no sharp edge where they are narrowest)
+    narrowest_sd = float(np.sqrt(cov[0, 0] + sd ** 2))
+    real = amp > SMEAR_SIGMAS * sd and b[0] - amp <= SHARP_RAMP_PX ** 2 + SMEAR_SIGMAS * narrowest_sd
     return Smear(float(np.sqrt(2.0 * amp)) if real else 0.0, 0.5 * float(np.arctan2(b[2], b[1])), bool(real), b)
 
 
