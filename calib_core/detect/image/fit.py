@@ -516,11 +516,12 @@ def _pass2_smear(cam, sig: _Signal, fit1: ConeFit, R: float, a_range_rad, geo, h
     if use.sum() < 12:
         return None
     theta = np.arctan2(nrm[use, 1], nrm[use, 0])
+    min_step = EDGE_NOISE_FACTOR * sig.noise * np.sqrt(2 * np.pi) * SMOOTH_SIGMA_PX
     te, step, w_k, sm = smear.read(sig.colour_profiles(sil[use], nrm[use], t2), t2, np.abs(t2) <= half, theta,
-                                   R, max(1.0, CORR_LENGTH_PX * k2 / perim))
+                                   R, max(1.0, CORR_LENGTH_PX * k2 / perim), min_step)
     if not sm.real:
         return None
-    keep = step >= max(0.3 * float(np.median(step)), EDGE_NOISE_FACTOR * sig.noise * np.sqrt(2 * np.pi) * SMOOTH_SIGMA_PX)
+    keep = step >= max(0.3 * float(np.median(step)), min_step)
     ok2 = np.zeros(k2, bool)
     ok2[np.flatnonzero(use)[keep]] = True
     if ok2.sum() < 12:

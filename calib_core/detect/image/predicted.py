@@ -115,9 +115,10 @@ def ramp_points(cam: CameraModel, sig: _Signal, w: np.ndarray, a: float, band_px
     if use.sum() < 12:
         return None
     theta = np.arctan2(nrm[use, 1], nrm[use, 0])
+    min_step = EDGE_NOISE_FACTOR * sig.noise * np.sqrt(2 * np.pi) * SMOOTH_SIGMA_PX
     te, step, w_k, sm = smear.read(sig.colour_profiles(sil[use], nrm[use], t), t, np.abs(t) <= band_px, theta, R,
-                                   CORR_LENGTH_PX / EDGE_SPACING_PX)
-    keep = step >= EDGE_NOISE_FACTOR * sig.noise * np.sqrt(2 * np.pi) * SMOOTH_SIGMA_PX
+                                   CORR_LENGTH_PX / EDGE_SPACING_PX, min_step)
+    keep = step >= min_step
     ki = np.flatnonzero(use)[keep]
     return (sil[ki] + te[keep, None] * nrm[ki], ki, int(use.sum()), step[keep], w_k[keep]), sm
 

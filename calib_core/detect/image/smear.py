@@ -111,7 +111,9 @@ def measure(theta: np.ndarray, widths: np.ndarray, corr_points: float) -> Smear:
     # b0 - amp, must be a sharp edge's within its standard error (oriented texture, brick
     # courses, makes widths that vary with the angle too, but no sharp edge where they are narrowest)
     narrowest_sd = float(np.sqrt(cov[0, 0] + sd ** 2))
-    real = amp > SMEAR_SIGMAS * sd and b[0] - amp <= SHARP_RAMP_PX ** 2 + SMEAR_SIGMAS * narrowest_sd
+    # (and a smear no longer than a sharp edge's width changes no edge: none to read)
+    real = (amp > SMEAR_SIGMAS * sd and b[0] - amp <= SHARP_RAMP_PX ** 2 + SMEAR_SIGMAS * narrowest_sd
+            and 2.0 * amp > SHARP_RAMP_PX ** 2)
     return Smear(float(np.sqrt(2.0 * amp)) if real else 0.0, 0.5 * float(np.arctan2(b[2], b[1])), bool(real), b)
 
 
@@ -149,7 +151,7 @@ def edges_at_widths(E: np.ndarray, widths: np.ndarray, w_k: np.ndarray, t: np.nd
 
 
 def read(profiles: np.ndarray, t: np.ndarray, in_band: np.ndarray, theta: np.ndarray, radius_px: float,
-         corr_points: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, Smear]:
+         corr_points: float, min_step: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, Smear]:
     """Read an outline's edges as ramps.
 
     Args:
@@ -157,6 +159,9 @@ def read(profiles: np.ndarray, t: np.ndarray, in_band: np.ndarray, theta: np.nda
             STEP_PX, reaching :func:`window_px` beyond the band searched.
         in_band: (M,) offsets searched; theta: (K,) outward normal angles (rad).
         corr_points: normals per independent error (see :func:`measure`).
+        min_step: the least colour step (the profiles' units) of an edge: the smear is measured
+            on the normals whose best ramp stands for at least this step (a hidden or faint
+            stretch of the outline has widths of its own, not the smear's).
 
     Returns:
         t_edge (K,) px, step size (K,) in the profiles' units (the colour step each matched ramp
@@ -164,7 +169,13 @@ def read(profiles: np.ndarray, t: np.ndarray, in_band: np.ndarray, theta: np.nda
     """
     widths, templates, norms = bank(radius_px)
     E = energies(profiles, templates)
-    smear = measure(theta, free_widths(E, widths, in_band), corr_points)
+    best = np.where(in_band[None, None, :], E, -1.0).max(axis=2)  # (n_w, K)
+    wi = best.argmax(axis=0)
+    seen = np.sqrt(np.maximum(best.max(axis=0), 0.0)) / norms[wi] >= min_step
+    if seen.sum() >= 12:
+        smear = measure(theta[seen], widths[wi][seen], corr_points)
+    else:
+        smear = Smear(0.0, 0.0, False, np.array([SHARP_RAMP_PX ** 2, 0.0, 0.0]))
     w_k = np.clip(model_widths(smear, theta), widths[0], widths[-1])
     t_edge, e = edges_at_widths(E, widths, w_k, t, in_band)
     return t_edge, np.sqrt(np.maximum(e, 0.0)) / np.interp(w_k, widths, norms), w_k, smear
