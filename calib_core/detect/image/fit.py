@@ -460,12 +460,9 @@ def pass2_half_px(sigma_px: float, R: float) -> float:
     return max(3.0, 3.0 * sigma_px + 1.5, 0.02 * R)
 
 
-def _pass2(cam, sig, fit1: ConeFit, R: float, a_range_rad, rng):
-    """Edges along the normals of ``fit1``'s outline, refitted: (fit, used mask, strengths, K,
-    edge widths). When that outline is not round for its edge width, the same normals are read
-    again on profiles smoothed along them (BLUR_SCALES_PX): a motion-smeared edge is a ramp
-    whose gradient is a low plateau, studded with the sharp edges of the still scene seen
-    through the ramp; its smoothed gradient peaks at the ramp's middle, where the outline is."""
+def _outline_normals(cam, fit1: ConeFit):
+    """(outline px (K,2), its normalised points, outward normals, K, perimeter px) of a fit's
+    outline, one normal per EDGE_SPACING_PX; None when the outline is not all in front."""
     sil = silhouette_uv(cam, fit1.w, fit1.a_rad, n=180)
     if not np.isfinite(sil).all():
         return None
@@ -475,7 +472,29 @@ def _pass2(cam, sig, fit1: ConeFit, R: float, a_range_rad, rng):
     sil = cam.distort(sil_xy)
     ctr = cam.project(fit1.w[None, :])[0]
     nrm = outward_normals(sil, sil.mean(axis=0) if np.isfinite(ctr).all() else ctr)
-    geo = (sil, sil_xy, nrm, k2, perim)
+    return sil, sil_xy, nrm, k2, perim
+
+
+def _smear_read(cam, sig, fit1: ConeFit, R: float, a_range_rad, geo, half: float):
+    """:func:`_pass2_smear`, then once more along the normals of its own outline (the ramps'
+    windows centred on them: the reading no longer depends on where the start put them)."""
+    first = _pass2_smear(cam, sig, fit1, R, a_range_rad, geo, half)
+    geo2 = None if first is None else _outline_normals(cam, first[0])
+    if geo2 is None:
+        return first
+    again = _pass2_smear(cam, sig, first[0], R, a_range_rad, geo2, pass2_half_px(first[0].sigma_px, R))
+    return again if again is not None and again[0].inliers.sum() >= first[0].inliers.sum() * 0.9 else first
+
+
+def _pass2(cam, sig, fit1: ConeFit, R: float, a_range_rad, rng):
+    """Edges along the normals of ``fit1``'s outline, refitted: (fit, used mask, strengths, K,
+    edge widths). When that outline is not round for its edge width, the same normals are read
+    again on profiles smoothed along them (BLUR_SCALES_PX): a motion-smeared edge is a ramp
+    whose gradient is a low plateau, studded with the sharp edges of the still scene seen
+    through the ramp; its smoothed gradient peaks at the ramp's middle, where the outline is."""
+    geo = _outline_normals(cam, fit1)
+    if geo is None:
+        return None
     half = pass2_half_px(fit1.sigma_px, R)
     best = _pass2_reading(cam, sig, fit1, R, a_range_rad, rng, geo, half, 0.0)
     if best is None or best[0].sigma_px > 0.5 * clean_rms_px(R) or best[0].inliers.mean() < 0.9:
@@ -486,7 +505,7 @@ def _pass2(cam, sig, fit1: ConeFit, R: float, a_range_rad, rng):
                                  or best[0].sigma_px > outline_rms_limit_px(R, _median_width(best))):
         # a blurred or ragged outline: read it as a motion smear's ramps when the edge widths
         # around it say the blur is one (smear.py)
-        alt = _pass2_smear(cam, sig, fit1, R, a_range_rad, geo, half)
+        alt = _smear_read(cam, sig, fit1, R, a_range_rad, geo, half)
         if alt is not None and _smear_held(cam, sig, alt, R) and (best is None or _quality(alt[0]) > _quality(best[0])):
             best = alt
     for s in BLUR_SCALES_PX:
@@ -494,7 +513,7 @@ def _pass2(cam, sig, fit1: ConeFit, R: float, a_range_rad, rng):
             break
         if R < SMALL_RADIUS_PX or 2.3548 * s > BLUR_MAX_RADIUS_FRACTION * R:
             break  # (no smear on a small blob, none wider than a quarter radius: as outline_rms_limit_px)
-        alt = _pass2_reading(cam, sig, fit1, R, a_range_rad, np.random.default_rng(k2), geo, half + 3.0 * s, s)
+        alt = _pass2_reading(cam, sig, fit1, R, a_range_rad, np.random.default_rng(geo[3]), geo, half + 3.0 * s, s)
         if alt is not None and _smoothed_held(alt, R) and (best is None or _quality(alt[0]) > _quality(best[0])):
             best = alt
     return best
