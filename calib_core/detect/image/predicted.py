@@ -285,15 +285,18 @@ def _smoothed(cam, sig: _Signal, w0, a0: float, band: float, max_shift_q: float,
 
 def _ramped(cam, sig: _Signal, w0, a0: float, band: float, max_shift_q: float, seed: int, R: float,
             peaks: _Reading) -> _Reading:
-    """The reading of a motion-smeared outline at its ramps' middles (smear.py), when the smear
-    measured around it is real and that reading lies on MIN_SUPPORT of the outline and is round;
-    else ``peaks``. Its edge width, for the floor, is the widest of the smear model's median and
-    the peaks' (the studs of the still scene seen through a smear hide it from the peaks' widths:
-    motion s1000, 9 px of smear, every peak reading's median width 3.7-3.8 px)."""
+    """A motion smear read around the outline (smear.py), when it is real and its ramps lie on
+    MIN_SUPPORT of the outline, round: its edge width (the smear model's median) is the floor's
+    when wider than the peaks' (the studs of the still scene seen through a smear hide it from
+    the peaks' widths: motion s1000, 9 px of smear, every peak reading's median width 3.7-3.8 px,
+    2.28 px off with a stated 0.13 px). The edges are the ramps' middles when the peaks' own
+    edges are blurred; a sharp peak reading keeps its edges (a short smear measured on an
+    outline whose touching edges vary in width, chair s1002, is no reason to read it otherwise)."""
     alt = _read(cam, sig, w0, a0, band, max_shift_q, seed, 0.0, ramps=True)
     if alt is None or alt.support < MIN_SUPPORT or alt.fit.sigma_px > clean_rms_px(R):
         return peaks
-    return replace(alt, edge_width_px=float(np.nanmax([alt.edge_width_px, peaks.edge_width_px])))
+    width = float(np.nanmax([alt.edge_width_px, peaks.edge_width_px]))
+    return replace(alt if is_blurred(peaks.edge_width_px) else peaks, edge_width_px=width, smear=alt.smear)
 
 
 def detect_at_prediction(image: np.ndarray, cam: CameraModel, sphere_radius_m: float, uv_px, radius_px: float,
