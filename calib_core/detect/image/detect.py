@@ -557,6 +557,7 @@ def _verdict(look, fits, cands, method, hinted: bool) -> ImageDetection:
         return _not_found("apparent size outside the plausible range", method)
     runner_up = _evidence(good[1][1]) / max(_evidence(f), 1e-9) if len(good) > 1 else 0.0
     det = _detection(f, look.radius_m, method, len(cands), runner_up)
+    det.extras["rival_share"] = round(_rival_share(fits, f), 4)
     if method == "hough-circle":
         h = hough_circle(look.img, f.centre_uv_px, det.radius_px)
         if h is None:
@@ -564,6 +565,34 @@ def _verdict(look, fits, cands, method, hinted: bool) -> ImageDetection:
         det.center_uv_px, det.radius_px, det.cov_uv_px2 = h[0], h[1], h[2]
         det.ellipse_px = ((float(h[0][0]), float(h[0][1])), (2 * h[1], 2 * h[1]), 0.0)
     return det
+
+
+# a round object elsewhere in the image counts as a rival of the accepted one when it is credible
+# and clean (accepted, or refused only as cut by the border or partly hidden), of a similar size
+# (radius within RIVAL_SIZE_RATIO) and its evidence at least RIVAL_MIN_EVIDENCE of the accepted one's
+RIVAL_SIZE_RATIO = 2.0
+RIVAL_MIN_EVIDENCE = 0.2
+
+
+def _rival_share(fits, f) -> float:
+    """Share of the round-object evidence in the image that is not the accepted outline ``f``:
+    sum of the rivals' evidence over (that + ``f``'s); 0 without rivals. One image with several
+    round objects of the sphere's size and contrast cannot say which one is the sphere."""
+    r_f, ev_f = _mean_radius(f.silhouette_px), _evidence(f)
+    rivals: list = []
+    for _, g in sorted(fits, key=lambda cf: -_evidence(cf[1]) if cf[1].silhouette_px is not None else 0.0):
+        if g is f or g.silhouette_px is None or not g.credible or g.score < WEAK_FIT:
+            continue
+        if not (g.ok or g.reason == CUT or "hidden" in g.reason):
+            continue
+        r_g = _mean_radius(g.silhouette_px)
+        if not 1 / RIVAL_SIZE_RATIO <= r_g / r_f <= RIVAL_SIZE_RATIO or _evidence(g) < RIVAL_MIN_EVIDENCE * ev_f:
+            continue
+        if any(np.hypot(*(g.centre_uv_px - h.centre_uv_px)) < max(r_f, r_g) for h in [f, *rivals]):
+            continue  # the same object again
+        rivals.append(g)
+    ev = sum(_evidence(g) for g in rivals)
+    return float(ev / (ev + ev_f)) if ev > 0 else 0.0
 
 
 DISPUTED = "two fits of one outline disagree"
