@@ -95,3 +95,15 @@ def test_weak_cut_outline_does_not_block_a_clean_whole_one():
     whole = _circle_fit((300, 250), 40, True, True, 0.95)
     det = _verdict([whole, cut])
     assert det.found and np.allclose(det.center_uv_px, (300, 250))
+
+
+def test_rival_share_counts_credible_round_objects_of_a_similar_size():
+    best = _circle_fit((300, 250), 40, True, True, 0.95)
+    twin = _circle_fit((700, 300), 36, True, True, 0.9)  # another round object of its size
+    cut = _circle_fit((950, 300), 44, False, True, 0.8, D.CUT)
+    small = _circle_fit((100, 100), 12, True, True, 0.95)  # much smaller: not a rival
+    ragged = _circle_fit((500, 100), 40, True, True, 0.3)  # not clean: not a rival
+    fits = [(None, f) for f in (best, twin, cut, small, ragged)]
+    ev = [D._evidence(f) for f in (best, twin, cut)]
+    assert D._rival_share(fits, best) == pytest.approx((ev[1] + ev[2]) / sum(ev))
+    assert D._rival_share([(None, best), (None, small), (None, ragged)], best) == 0.0
