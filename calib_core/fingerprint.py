@@ -22,6 +22,7 @@ from __future__ import annotations
 import functools
 import hashlib
 import json
+import re
 from pathlib import Path
 
 from calib_core import __version__
@@ -40,25 +41,62 @@ def file_sha256(path: Path) -> str:
 # the files whose code decides an automatic entry besides the detectors (relative to calib_core):
 # the loaders the inputs pass through (a changed image scaling, dropped "no return" points or a
 # kept distortion term changes what the detectors see from the same file) and the session-level
-# second looks, and the stereo vouching between cameras
+# second looks, and the stereo vouching between cameras. These are the roots: every calib_core
+# module they import (at the top or inside a function) is covered too (:func:`source_files`).
 DETECTOR_SOURCES = ("detect/**/*.py", "pipeline.py", "disambiguate/*.py", "stereo/*.py", "solve/stereo_cov.py", "camera.py",
                     "io/images.py", "io/clouds.py", "io/cloud_ascii.py", "io/cloud_binary.py", "io/off.py",
                     "io/intrinsics.py", "io/kalibr.py")
 
+# "from calib_core.a.b import c, d" and "import calib_core.a.b", anywhere in a file
+_IMPORT = re.compile(r"^[ \t]*(?:from[ \t]+(calib_core(?:\.\w+)*)[ \t]+import[ \t]+\(?([\w ,\t]+)|import[ \t]+(calib_core(?:\.\w+)*))", re.M)
+
+
+def _module_file(package_dir: Path, dotted: str) -> Path | None:
+    """The file of module ``dotted`` (calib_core.x.y) under ``package_dir``, or None."""
+    p = package_dir.joinpath(*dotted.split(".")[1:])
+    for f in (p / "__init__.py", p.with_suffix(".py")):
+        if f.is_file():
+            return f
+    return None
+
+
+def _imported_files(package_dir: Path, f: Path) -> set[Path]:
+    """The calib_core files that ``f`` imports (a name imported from a package may be a module)."""
+    out = set()
+    for m in _IMPORT.finditer(f.read_text(encoding="utf-8")):
+        base = m.group(1) or m.group(3)
+        names = [n for n in re.split(r"[\s,]+", m.group(2) or "") if n and n != "as"]
+        for dotted in (base, *(f"{base}.{n}" for n in names)):
+            if (g := _module_file(package_dir, dotted)) is not None:
+                out.add(g)
+    return out
+
+
+def source_files(package_dir: Path) -> list[Path]:
+    """The DETECTOR_SOURCES under ``package_dir`` and every calib_core file they import,
+    transitively (read statically, so every shell gets the same list), sorted."""
+    seen: set[Path] = set()
+    todo = [p for pattern in DETECTOR_SOURCES for p in package_dir.glob(pattern)]
+    while todo:
+        f = todo.pop()
+        if f not in seen:
+            seen.add(f)
+            todo += _imported_files(package_dir, f) - seen
+    return sorted(seen, key=lambda p: p.relative_to(package_dir).as_posix())
+
 
 def source_digest(package_dir: Path) -> str:
-    """Digest of the DETECTOR_SOURCES under ``package_dir`` (a calib_core folder)."""
+    """Digest of the detectors' source files (:func:`source_files`) under ``package_dir`` (a calib_core folder)."""
     h = hashlib.sha256()
-    for pattern in DETECTOR_SOURCES:
-        for p in sorted(package_dir.glob(pattern)):
-            h.update(p.relative_to(package_dir).as_posix().encode())
-            h.update(p.read_bytes())
+    for p in source_files(package_dir):
+        h.update(p.relative_to(package_dir).as_posix().encode())
+        h.update(p.read_bytes())
     return h.hexdigest()[:16]
 
 
 @functools.lru_cache(maxsize=1)
 def detector_version() -> str:
-    """sonarcal's version and a digest of the detectors' source files (DETECTOR_SOURCES)."""
+    """sonarcal's version and a digest of the detectors' source files (:func:`source_files`)."""
     return f"{__version__}+{source_digest(Path(__file__).resolve().parent)}"
 
 

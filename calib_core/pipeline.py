@@ -120,15 +120,19 @@ def detect_session(session_or_data, detections: dict, progress: Progress | None 
     for cid, entry in _resolve_ambiguous_sonar(data, merged, only=set(auto)).items():
         auto[cid]["sonar"] = entry
     merged = merge_auto(detections, auto)
-    stereo = _stereo_predictions(data, merged, set(auto))
+    regs = _registrations(data, merged, set(auto))
+    stereo = _stereo_predictions(data, merged, set(auto), regs)
     refusals = _stereo_refusals(data, merged, set(auto), stereo)
     for (cid, cam), entry in refusals.items():
         auto[cid][cam] = entry
     merged = merge_auto(detections, auto)
     if refusals:  # the refused centres leave the registrations: predict again without them
-        stereo = _stereo_predictions(data, merged, set(auto))
+        regs = _registrations(data, merged, set(auto))
+        stereo = _stereo_predictions(data, merged, set(auto), regs)
     for cam in data.session.cameras:
-        for cid, entry in _resolve_ambiguous_images(data, merged, cam, set(auto), stereo.get(cam)).items():
+        # the first round's registration is the one the stereo predictions were made from (same
+        # detections, same captures, a seeded RANSAC): computed once, not again
+        for cid, entry in _resolve_ambiguous_images(data, merged, cam, set(auto), stereo.get(cam), regs.get(cam)).items():
             auto[cid][cam] = entry
     if progress:
         progress(len(todo), len(todo), "done")
@@ -163,7 +167,8 @@ def _resolve_ambiguous_sonar(data: SessionData, detections: dict, only: set) -> 
     return out
 
 
-def _resolve_ambiguous_images(data: SessionData, detections: dict, cam: str, only: set, stereo=None) -> dict:
+def _resolve_ambiguous_images(data: SessionData, detections: dict, cam: str, only: set, stereo=None,
+                              registration=None) -> dict:
     """Second look at camera ``cam``'s images (among captures in ``only``) guided by the sonar.
 
     "two candidates" images are refitted at the candidate the sonar's centres single out, and
@@ -181,8 +186,11 @@ def _resolve_ambiguous_images(data: SessionData, detections: dict, cam: str, onl
     ``stereo``: {capture: StereoPrediction} from another camera's registration carried by the stereo
     transform (:func:`_stereo_predictions`): where this camera's own registration cannot predict a
     capture it has no centre for, the look goes there.
+
+    ``registration``: this camera's :func:`_camera_registration` on exactly these ``detections``
+    and ``only``, when the caller has it already (used by the first round only).
     """
-    out = _resolve_round(data, detections, cam, only, stereo)
+    out = _resolve_round(data, detections, cam, only, stereo, registration)
     found = any(e.get("center") is not None and "predicted place" in (e.get("resolved_by") or "") for e in out.values())
     rest = {cid for cid in only if (out.get(cid) or detections.get(cid, {}).get(cam) or {}).get("center") is None}
     if not found or not rest:
@@ -204,14 +212,14 @@ def _camera_registration(data: SessionData, detections: dict, cam: str, only: se
     return res, cands, missing
 
 
-def _resolve_round(data: SessionData, detections: dict, cam: str, only: set, stereo=None) -> dict:
+def _resolve_round(data: SessionData, detections: dict, cam: str, only: set, stereo=None, registration=None) -> dict:
     """One round of :func:`_resolve_ambiguous_images`: {capture_id: new entry}."""
     _, cands, missing = _registration_inputs(detections, cam, only)
     if not any(cid in only for cid in cands) and not missing:
         return {}
     model = data.camera(cam)
-    res, cands, missing = _camera_registration(data, detections, cam, only)
-    out = {}
+    res, cands, missing = registration or _camera_registration(data, detections, cam, only)
+    out = _looks_on_three(data, detections, cam, only, cands, missing) if res.T_cam_sonar is None else {}
     for cid, ((u, v, rng_m), why) in _looks(res, cands, missing, detections, cam, only).items():
         radius_px = model.fx * data.session.sphere_radius_m / max(rng_m, 1e-6)
         entry = detect_image_entry(data, cid, cam, hint_uv_px=(u, v), hint_radius_px=radius_px)
@@ -234,6 +242,47 @@ def _resolve_round(data: SessionData, detections: dict, cam: str, only: set, ste
         if cid in missing and cid not in out and cid not in own and detections[cid][cam].get("status") == "auto":
             out[cid] = _look_at_stereo(data, cid, cam, p, detections[cid][cam])
     return {cid: e for cid, e in out.items() if e is not None}
+
+
+def _looks_on_three(data: SessionData, detections: dict, cam: str, only: set, cands: dict, missing: list) -> dict:
+    """{capture: entry} of the looks at the places a registration on exactly 3 plain detections
+    predicts (:func:`calib_core.disambiguate.three.register_on_three`), when at least
+    PREDICTION_MIN_CHECKS of them find the sphere; else {}.
+
+    Such a registration cannot check itself, so its looks are its checks: a look counts only where
+    the registration's expected error is at most CHECKED_MAX_ERROR_PX (its sensitivity to a 1.5 %
+    range error of one plain detection), with a window that size, and only when it finds an outline
+    of the predicted size (its range agrees) within CHECK_MAX_PX of the predicted place. A wrong
+    registration predicts places where no such outline is; a look that finds nothing keeps the
+    capture's first entry. The kept looks then join the plain detections in the next round
+    (:func:`_resolve_ambiguous_images`), whose registration on 5 or more predicts the rest."""
+    from calib_core.disambiguate.three import register_on_three
+
+    plain = [c for c, k in cands.items() if len(k) == 1 and c not in missing and range_is_measured(detections[c][cam])]
+    todo = [c for c in missing if c in only and detections[c][cam].get("status") == "auto"]
+    if len(plain) != 3 or len(todo) < PREDICTION_MIN_CHECKS:
+        return {}
+    centers = _sonar_centers(detections)
+    res = register_on_three(data.camera(cam), centers, cands, plain, todo)
+    if res is None:
+        return {}
+    found = {}
+    for cid, (u, v, rng_m) in res.predicted_uvr.items():
+        sigma = res.sigma_px.get(cid, float("inf"))
+        if not sigma <= CHECKED_MAX_ERROR_PX:
+            continue
+        radius_px = data.camera(cam).fx * data.session.sphere_radius_m / max(rng_m, 1e-6)
+        hint = {"hint_uv_px": [round(float(u), 3), round(float(v), 3)], "hint_radius_px": round(float(radius_px), 3)}
+        entry = _look_at_prediction(data, cid, cam, (u, v, rng_m), (max(res.residual_px, sigma), ""), detections[cid][cam], hint)
+        if entry is not None and entry.get("center") is not None and np.hypot(entry["center"][0] - u, entry["center"][1] - v) <= CHECK_MAX_PX:
+            found[cid] = entry
+    if len(found) < PREDICTION_MIN_CHECKS:
+        return {}
+    phrase = (f"registration on 3 captures, {res.residual_px:.1f} px, confirmed by {len(found)} looks at its predictions "
+              f"within {CHECK_MAX_PX:.0f} px")
+    for entry in found.values():
+        entry["resolved_by"] = f"sonar-guided second look at the predicted place and size ({phrase})"
+    return found
 
 
 def _look_at_stereo(data: SessionData, cid: str, cam: str, p, first: dict) -> dict | None:
@@ -317,19 +366,29 @@ def _sonar_centers(detections: dict) -> dict:
             if d.get("sonar") and d["sonar"].get("status") != "rejected" and d["sonar"].get("center") is not None}
 
 
-def _stereo_predictions(data: SessionData, detections: dict, only: set) -> dict:
+def _registrations(data: SessionData, detections: dict, only: set) -> dict:
+    """{camera: :func:`_camera_registration`} for the stereo predictions; empty when the session
+    has no stereo transform, one camera, or nothing detected afresh (no capture to predict for)."""
+    cams = list(data.session.cameras)
+    if not data.session.stereo or len(cams) < 2 or not only:
+        return {}
+    return {c: _camera_registration(data, detections, c, only) for c in cams}
+
+
+def _stereo_predictions(data: SessionData, detections: dict, only: set, full: dict | None = None) -> dict:
     """{camera b: {capture: StereoPrediction}} from the best registered other camera tied to ``b``
     by the stereo transforms, chained when the session ties both only to a third camera
-    (:mod:`calib_core.stereo.vouch`, :mod:`calib_core.stereo.chain`); empty without a stereo transform."""
+    (:mod:`calib_core.stereo.vouch`, :mod:`calib_core.stereo.chain`); empty without a stereo transform.
+    ``full``: :func:`_registrations` of these ``detections`` and ``only`` when the caller has them."""
     from calib_core.solve.stereo_cov import key_stereo_cov
     from calib_core.stereo.chain import chained_stereo
     from calib_core.stereo.vouch import stereo_predictions
 
     stereo, cams = data.session.stereo, list(data.session.cameras)
-    if not stereo or len(cams) < 2 or not only:  # nothing detected afresh: no capture to predict for
+    full = _registrations(data, detections, only) if full is None else full
+    if not full:
         return {}
-    full = {c: _camera_registration(data, detections, c, only)[:2] for c in cams}
-    regs = {c: (res, len(cands)) for c, (res, cands) in full.items()}
+    regs = {c: (res, len(cands)) for c, (res, cands, _) in full.items()}
     out = {}
     for b in cams:
         a = _stereo_source(regs, b, stereo, cams)
@@ -339,7 +398,7 @@ def _stereo_predictions(data: SessionData, detections: dict, only: set) -> dict:
         res_a = regs[a][0]
         out[b] = stereo_predictions(data.camera(b), T_b_a, cov, res_a.T_cam_sonar, res_a.residual_px,
                                     data.camera(a).fx, _sonar_centers(detections), a,
-                                    _support_centers(data.camera(a), detections, a, *full[a]))
+                                    _support_centers(data.camera(a), detections, a, *full[a][:2]))
     return out
 
 

@@ -38,7 +38,7 @@ def main() -> int:
             shutil.rmtree(p) if p.is_dir() else p.unlink(missing_ok=True)
         wb = Workbench(root, port=0)
         try:
-            with chromium(Path(tmp) / "profile", 1600, 1000) as ctx:
+            with chromium(1600, 1000) as ctx:
                 page = ctx.new_page()
                 page.goto(wb.url)
                 page.get_by_text("Captures (worst first)").wait_for()

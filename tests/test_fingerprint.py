@@ -116,3 +116,32 @@ def test_the_assumed_stereo_covariance_of_the_vouching_is_in_the_fingerprint():
     covered = {p.resolve() for pattern in fpm.DETECTOR_SOURCES for p in pkg.glob(pattern)}
     for fn in (stereo_cov.default_stereo_cov, stereo_cov.key_stereo_cov, stereo_cov.invert_with_cov):
         assert Path(inspect.getsourcefile(fn)).resolve() in covered, fn.__name__
+
+
+def test_the_modules_the_detectors_import_are_in_the_fingerprint():
+    """The loaders' helpers and the session model decide what a detector sees (a LAS header's
+    scale, a confined path): they were outside the fingerprint until it followed the imports."""
+    from pathlib import Path
+
+    pkg = Path(fpm.__file__).resolve().parent
+    covered = {p.relative_to(pkg).as_posix() for p in fpm.source_files(pkg)}
+    for rel in ("io/las_header.py", "io/cloud_headers.py", "geometry.py", "session.py", "detections.py"):
+        assert rel in covered, rel
+    assert not any(rel.startswith(("app/", "solve/refine")) for rel in covered)
+
+
+def test_a_module_imported_inside_a_detector_function_changes_the_digest(tmp_path):
+    import shutil
+    from pathlib import Path
+
+    pkg = tmp_path / "calib_core"
+    shutil.copytree(Path(fpm.__file__).resolve().parent, pkg, ignore=shutil.ignore_patterns("__pycache__"))
+    (pkg / "helper_x.py").write_text("K = 1\n")
+    (pkg / "unrelated_x.py").write_text("K = 1\n")
+    det = pkg / "detect" / "image" / "detect.py"
+    det.write_text(det.read_text() + "\n\ndef _uses_helper():\n    from calib_core import helper_x\n    return helper_x.K\n")
+    before = fpm.source_digest(pkg)
+    (pkg / "unrelated_x.py").write_text("K = 2\n")
+    assert fpm.source_digest(pkg) == before
+    (pkg / "helper_x.py").write_text("K = 2\n")
+    assert fpm.source_digest(pkg) != before

@@ -79,9 +79,10 @@ def scale_line(cal: dict) -> str:
     s = cal.get("range_scale") or {}
     note = s.get("note") or "not estimated"
     if s.get("estimated") and isinstance(s.get("value"), (int, float)):
+        # the value and what to do with it first; the evidence (often a paragraph) after it
         return (f"range scale {s['value']:.5f} ± {_f(s.get('sigma'), '.5f')} (1-sigma; sound speed in the cloud "
-                f"{100 * (s['value'] - 1):+.2f} % off; from {s.get('source') or '-'}; {note}): divide cloud points "
-                f"by it before applying T_cam_sonar")
+                f"{100 * (s['value'] - 1):+.2f} % off; from {s.get('source') or '-'}): divide cloud points "
+                f"by it before applying T_cam_sonar. How it was estimated: {note}")
     value = s.get("value", 1.0)
     head = "range scale held at 1" if value in (None, 1, 1.0) else f"range scale {value:g}"
     if note.startswith("not observable") or note.startswith("too weakly"):
