@@ -55,6 +55,12 @@ def _case(kind, seed, scale, with_ball=True) -> ImageCase:
     return case
 
 
+def _rival(det) -> str:
+    """' rival=0.38' for a found detection with other round objects of its size (detect._rival_share)."""
+    v = det.extras.get("rival_share", 0.0) if det.found else 0.0
+    return f" rival={v:.2f}" if v else ""
+
+
 def _negatives(kind, seed, scale, st, listing) -> None:
     """The same scene without the ball (and its holder): any detection there is false."""
     case = _case(kind, seed, scale, with_ball=False)
@@ -66,7 +72,8 @@ def _negatives(kind, seed, scale, st, listing) -> None:
             st["neg_false"] += 1
             st["scored"].append((det.score, False))
         if listing:
-            print(f"{case.label + ' no ball':24s} bg={use_bg!s:5s} found={det.found!s:5s} score={det.score:.2f} {det.reason}")
+            print(f"{case.label + ' no ball':24s} bg={use_bg!s:5s} found={det.found!s:5s} score={det.score:.2f} {det.reason}"
+                  f"{_rival(det)}")
 
 
 def run(kinds, seeds, scale, listing=False, negatives=False) -> dict:
@@ -96,7 +103,7 @@ def run(kinds, seeds, scale, listing=False, negatives=False) -> dict:
                     st["miss"][det.reason.split(" at (")[0].split(":")[0]] += 1
                 if listing:
                     print(f"{case.label:24s} bg={use_bg!s:5s} r={case.radius_px:6.1f} found={det.found!s:5s} "
-                          f"err={'-' if err is None else f'{err:.2f}':>6s} score={det.score:.2f} {det.reason}")
+                          f"err={'-' if err is None else f'{err:.2f}':>6s} score={det.score:.2f} {det.reason}{_rival(det)}")
         rows[kind] = st
     return rows
 

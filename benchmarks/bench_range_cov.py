@@ -67,7 +67,7 @@ def capture_case(sensor: str, holder: str, seeds, tol_m: float, cache) -> dict:
     r_est = 0.3 if sensor == "lidar16" else 0.2
     width = estimate_beam_width_deg([_cloud(cache, s, sensor, holder, r_est)[0] for s in range(8)],
                                     r_est, 1.0).beam_width_deg
-    E, V, D, n_wrong, n_refused = [], [], [], 0, 0
+    E, V, D, U, n_wrong, n_refused = [], [], [], [], 0, 0
     for seed in seeds:
         P, c, r = _cloud(cache, seed, sensor, holder)
         det = detect_sphere_in_cloud(P, r, width)
@@ -81,8 +81,9 @@ def capture_case(sensor: str, holder: str, seeds, tol_m: float, cache) -> dict:
         E.append(e)
         V.append(v)
         D.append(np.linalg.norm(c))
+        U.append(floor_unit(det.center_sonar_m, width))
     return {"E": np.array(E).reshape(-1, 3), "V": np.array(V).reshape(-1, 3), "width": width, "D": np.array(D),
-            "wrong": n_wrong, "refused": n_refused}
+            "U": np.array(U), "wrong": n_wrong, "refused": n_refused}
 
 
 def sweep_case(preset: str, seeds, tol_m: float, cache: Path) -> dict:
@@ -92,7 +93,7 @@ def sweep_case(preset: str, seeds, tol_m: float, cache: Path) -> dict:
     from calib_core.session import load_session
     from calib_core.synth.ground_truth import load_ground_truth
 
-    E, V, D, wrong, refused, widths = [], [], [], 0, 0, []
+    E, V, D, U, wrong, refused, widths = [], [], [], [], 0, 0, []
     for seed in seeds:
         root = _sweep_session(cache, preset, seed, 0.5)
         gt, data = load_ground_truth(root), SessionData(load_session(root))
@@ -113,8 +114,32 @@ def sweep_case(preset: str, seeds, tol_m: float, cache: Path) -> dict:
                 E.append(err)
                 V.append(v)
                 D.append(np.linalg.norm(truth))
-    return {"E": np.array(E).reshape(-1, 3), "V": np.array(V).reshape(-1, 3), "D": np.array(D),
+                U.append(floor_unit(e["center"], data.effective_beam_width_deg))
+    return {"E": np.array(E).reshape(-1, 3), "V": np.array(V).reshape(-1, 3), "D": np.array(D), "U": np.array(U),
             "width": float(np.median(widths)), "wrong": wrong, "refused": refused}
+
+
+def floor_unit(center_m, width_deg: float) -> float:
+    """(range x beam width)^2 (m^2): the model floor's variance per axis is MODEL_FLOOR_BEAM_FRACTION^2 of it."""
+    return float(np.linalg.norm(center_m) * np.radians(width_deg)) ** 2
+
+
+def floor_table(results: list[dict], floors) -> list[str]:
+    """Pooled z2 per axis had the detector used each model floor in ``floors`` instead of its own
+    (the floor is added to the fit's covariance after the fit: the centres do not change)."""
+    from calib_core.detect.sonar.detect import MODEL_FLOOR_BEAM_FRACTION as f0
+
+    E = np.vstack([r["E"] for r in results if len(r["E"])])
+    V = np.vstack([r["V"] for r in results if len(r["E"])])
+    U = np.concatenate([r["U"] for r in results if len(r["E"])])
+    fit = np.maximum(V - f0**2 * U[:, None], 1e-14)  # the fit's own variance per axis (floor isotropic)
+    out = ["| model floor (x range x beam width) | z2 along | z2 horiz | z2 vert | z2 all | med z2 |",
+           "|---|---|---|---|---|---|"]
+    for f in floors:
+        Z = E**2 / (fit + f**2 * U[:, None])
+        out.append(f"| {f:g}{' (now)' if f == f0 else ''} | " + " | ".join(f"{z:.2f}" for z in Z.mean(0))
+                   + f" | {Z.mean():.2f} | {np.median(Z):.2f} |")
+    return out
 
 
 HEADER = ("| case | width deg | right | wrong/refused | z2 along | z2 horiz | z2 vert | z2 all | med z2 | "
@@ -166,6 +191,8 @@ def main(argv=None) -> int:
     ap.add_argument("--cache", type=Path, help="keep the simulated clouds (and sessions) here")
     ap.add_argument("--sweep", nargs="*", metavar="PRESET", help="sessions of these range presets instead")
     ap.add_argument("--sessions", type=int, default=4, help="sessions per preset (--sweep)")
+    ap.add_argument("--floors", nargs="*", type=float, metavar="F",
+                    help="also print the pooled z2 had the sonar's model floor been each F")
     args = ap.parse_args(argv)
     if args.cache:
         args.cache.mkdir(parents=True, exist_ok=True)
@@ -180,6 +207,7 @@ def main(argv=None) -> int:
         for p, r in zip(args.sweep, res):
             print(row(p, r), flush=True)
         print(pooled("all", res))
+        everything = res
     else:
         seeds = range(args.first, args.first + args.captures)
         per_sensor = {}
@@ -190,7 +218,10 @@ def main(argv=None) -> int:
                 print(row(f"{sensor} {holder}", r), flush=True)
         for sensor, res in per_sensor.items():
             print(pooled(f"**{sensor}**", res))
-        print(pooled("**all**", [r for res in per_sensor.values() for r in res]))
+        everything = [r for res in per_sensor.values() for r in res]
+        print(pooled("**all**", everything))
+    if args.floors:
+        print("\n" + "\n".join(floor_table(everything, args.floors)))
     print(f"\n({time.perf_counter() - t0:.0f} s; load average {' '.join(f'{v:.2f}' for v in os.getloadavg())})")
     return 0
 

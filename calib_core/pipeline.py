@@ -144,24 +144,24 @@ def _resolve_ambiguous_sonar(data: SessionData, detections: dict, only: set) -> 
     candidate that the static scenery or the images single out is refitted with the detector
     seeded there (see :mod:`calib_core.disambiguate.sonar`); kept only when the refit finds the
     sphere within a radius of it. {capture_id: new sonar entry}."""
-    from calib_core.disambiguate.sonar import choose_sonar_candidates, reexamine_winners
+    from calib_core.disambiguate.sonar_rounds import settle_sonar
 
     auto = [(cid, e) for cid in only if (e := detections.get(cid, {}).get("sonar")) and e.get("status") == "auto"]
     ambiguous = [cid for cid, e in auto if e.get("center") is None and e.get("two_candidates")]
     winners = [cid for cid, e in auto if e.get("center") is not None and e.get("other_candidates")]
-    if not ambiguous and not winners:
+    if not ambiguous and not winners and len(auto) < 4:  # (a look past scenery needs other captures)
         return {}
     r = data.session.sphere_radius_m
     cams = {name: data.camera(name) for name in data.session.cameras}
-    choices = choose_sonar_candidates(detections, cams, r, ambiguous)
-    choices.update(reexamine_winners(detections, cams, r, winners))
+    plain = [cid for cid, e in auto if e.get("center") is not None]
+    choices = settle_sonar(detections, cams, r, ambiguous, winners, plain)
     out = {}
     for cid, choice in choices.items():
         entry = detect_sonar_entry(data, cid, seed_center_m=choice.center_sonar_m)
         if entry.get("center") is not None and np.linalg.norm(np.asarray(entry["center"]) - choice.center_sonar_m) <= r:
             seed = [round(float(v), 4) for v in choice.center_sonar_m]
             old = detections[cid]["sonar"]
-            cands = old.get("two_candidates") or [old["center"], *old["other_candidates"]]
+            cands = old.get("two_candidates") or [old["center"], *(old.get("other_candidates") or [])]
             entry.update(resolved_by=choice.resolved_by, seed_center_m=seed, two_candidates=cands)
             out[cid] = _with_fingerprint(data, cid, "sonar", entry, {"seed_center_m": seed})
     return out

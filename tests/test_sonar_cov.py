@@ -78,3 +78,17 @@ def test_a_sonars_blooming_keeps_its_footprint():
     assert np.allclose(avg.center_m, fit.center_m, atol=1e-6)
     assert np.allclose(avg.cov_center_m2, fit.cov_center_m2, rtol=1e-3, atol=1e-12)
     assert np.linalg.norm(fit.center_m - c) < 0.005
+
+
+def test_sonar_centre_covariance_is_honest_on_single_captures():
+    """A simulated sonar's centres (beams whose sub-rays average on the axis): the stated covariance,
+    the fit's plus the model floor, is neither twice the error in sd (floor 0.02: mean z2 0.2-0.3)
+    nor a fraction of it."""
+    z2 = []
+    for seed in range(1000, 1010):
+        P, c, r = range_capture(seed, "sonar", "stick")
+        det = detect_sphere_in_cloud(P, r, 1.0)
+        assert det.found and np.linalg.norm(det.center_sonar_m - c) < 0.02
+        B = _ray_frame(c)
+        z2.append((B @ (det.center_sonar_m - c)) ** 2 / np.diag(B @ det.cov_sonar_m2 @ B.T))
+    assert 0.5 < np.mean(z2) < 2.0, np.mean(z2, axis=0)

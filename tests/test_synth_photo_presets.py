@@ -54,7 +54,7 @@ def test_presets_fields():
     assert gym.photo == "gym" and gym.holder == "chair" and gym.n_cameras == 2 and gym.range_sensor == "lidar16"
     assert carried.photo == "carried" and carried.holder == "hand" and carried.n_backgrounds == 0
     assert {for_seed(carried, s).range_sensor for s in (4, 5)} == {"rgbd", "lidar16"}
-    assert all(p.photo == "" for n, p in PRESETS.items() if n not in ("gym", "carried-photo", "carried-3cam"))
+    assert all(p.photo == "" for n, p in PRESETS.items() if n not in ("gym", "carried-photo", "carried-3cam", "underwater"))
     assert PRESETS["carried-3cam"].photo == "carried" and PRESETS["carried-3cam"].n_cameras == 3
     names = list(PRESETS)  # added after every older preset (their seeds' sessions unchanged)
     assert names[names.index("gym"):names.index("gym") + 2] == ["gym", "carried-photo"]

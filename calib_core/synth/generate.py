@@ -100,7 +100,7 @@ def _write_captures(out: Path, L: Layout, pl: Placement, tick, look=None) -> tup
         if k == pl.drift_idx:  # the drift preset: frames recorded while the sphere drifts
             gt_caps[cid]["drift"] = write_drift_frames(
                 out, cid, rig, partial(_drift_scene, L, k, extra),
-                drift_positions(r_cap, pl.centers[k], P.drift_m), L.water, L.opts, r_cap, P.jpeg_quality)
+                _drift_line(L, pl, k), L.water, L.opts, r_cap, P.jpeg_quality, stills=images)
     return manifest_caps, gt_caps, first_radiance
 
 
@@ -114,12 +114,21 @@ def _capture_scenes(L: Layout, pl: Placement, k: int, r_cap) -> tuple:
     if not is_target:
         scene = Scene(tuple(L.static + world.flange_assembly(r_cap, L.rig, L.surface_z)))
         return scene, scene, extra
-    scan_scene = L.scene(pl.centers[k], r_cap, extra)
+    # the drifting capture's scene is its drift frames' (the same holder through the scan)
+    scan_scene = (L.scene(pl.centers[k], r_cap, extra) if k != pl.drift_idx
+                  else _drift_scene(L, k, extra, pl.centers[k]))
     img_scene = scan_scene if k != pl.moved_idx else L.scene(pl.image_centers[k], r_cap, extra)
     if k == pl.decoy_idx:
         trick = world.decoy_and_occluder(r_cap, L.rig, pl.centers[k], L.radius, L.style, P.bright)
         img_scene = Scene(tuple(img_scene.primitives) + tuple(trick))
     return scan_scene, img_scene, extra
+
+
+def _drift_line(L: Layout, pl: Placement, k: int) -> np.ndarray:
+    """The drifting sphere's centres: across the first camera's line of sight, the sense from a
+    stream of the capture's own (not ``r_cap``, whose draws depend on the clouds simulated)."""
+    eye = L.rig.cams[L.cams[0]][1][:3, 3]
+    return drift_positions(np.random.default_rng([int(L.seed), 7, k]), pl.centers[k], L.P.drift_m, eye)
 
 
 def _drift_scene(L: Layout, k: int, extra: list, c) -> Scene:

@@ -16,7 +16,11 @@ Each case is one rendered camera image of a scene kind (no sonar, no session fil
 - "sports", "outdoor", "underwater": held-out kinds (patterned sports balls; hard sun, sky and
   ground textures; colour attenuation, backscatter, caustics, a dive light and marine snow),
   with camera artefacts (JPEG, high gain, defocus, shake) on a share: see
-  :mod:`calib_core.synth.photo.heldout`.
+  :mod:`calib_core.synth.photo.heldout`;
+- "mesh", "tank", "dim": held-out kinds of the third round: see-through balls (open lattice,
+  cage, knotted net, wiffle holes: :mod:`calib_core.synth.photo.mesh_case`), a pool seen from
+  under water with the ball mirrored by the surface and a glass wall
+  (:mod:`calib_core.synth.photo.tank`), low light at high gain (:mod:`calib_core.synth.photo.dim`).
 
 ``render_case(kind, seed, scale)`` returns the image, the camera, the sphere radius, the true
 projection of the sphere centre (raw px), the visible fraction of the outline and, where the
@@ -35,12 +39,17 @@ from calib_core.synth import room, world
 from calib_core.synth.photo import cases as photo_cases
 from calib_core.synth.range import scenes as range_scenes
 from calib_core.synth.photo import heldout as heldout_cases
+from calib_core.synth.photo.dim import dim as dim_case
+from calib_core.synth.photo.mesh_case import mesh as mesh_case
+from calib_core.synth.photo.tank import tank as tank_case
 from calib_core.synth.camera_render import RenderOptions, Water, finish_image, render_radiance
 from calib_core.synth.rig import sample_rig, sample_target_center, silhouette_uv
 from calib_core.synth.scene import Scene
 
-KINDS = ("clutter", "big", "turbid", "chair", "glossy", "panels", "motion", "sports", "outdoor", "underwater")
+KINDS = ("clutter", "big", "turbid", "chair", "glossy", "panels", "motion", "sports", "outdoor", "underwater",
+         "mesh", "tank", "dim")
 PHOTO_KINDS = {"glossy": photo_cases.glossy, "panels": photo_cases.panels, "motion": photo_cases.motion}
+HELDOUT_KINDS = {**heldout_cases.HELDOUT_KINDS, "mesh": mesh_case, "dim": dim_case}
 
 
 @dataclass
@@ -70,8 +79,11 @@ def render_case(kind: str, seed: int, scale: float = 0.5, with_ball: bool = True
         return _turbid(rng, rig, cam, T_wc, opts, seed, with_ball)
     if kind == "chair":
         return _chair(rng, rig, cam, T_wc, opts, seed, with_ball)
-    if kind in heldout_cases.HELDOUT_KINDS:
-        L, c, radius, photo, opts, label = heldout_cases.HELDOUT_KINDS[kind](rng, rig, cam, T_wc, scale, with_ball, opts)
+    if kind == "tank":  # its own camera pose (looking up at the water surface)
+        L, c, radius, photo, opts, label, T_wc = tank_case(rng, rig, cam, T_wc, scale, with_ball, opts)
+        return _finish(L, None, cam, T_wc, c, radius, opts, rng, f"{label}/s{seed}", photo)
+    if kind in HELDOUT_KINDS:
+        L, c, radius, photo, opts, label = HELDOUT_KINDS[kind](rng, rig, cam, T_wc, scale, with_ball, opts)
         return _finish(L, None, cam, T_wc, c, radius, opts, rng, f"{label}/s{seed}", photo)
     if kind in PHOTO_KINDS:
         L, c, radius, photo, label = PHOTO_KINDS[kind](rng, rig, cam, T_wc, scale, with_ball)

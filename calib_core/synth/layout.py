@@ -15,6 +15,7 @@ import numpy as np
 
 from calib_core.geometry import invert_T, transform_points
 from calib_core.synth import room, world
+from calib_core.synth.boulders import round_boulders
 from calib_core.synth.range import scenes as range_scenes
 from calib_core.synth.camera_render import RenderOptions
 from calib_core.synth.occlusion import MAX_OCCLUDED_FRACTION, occluded_fraction
@@ -219,6 +220,9 @@ def add_surroundings(L: Layout, pl: Placement, r_scene, r_rig) -> None:
         L.ball = room.ball_style(r_rig)
     elif L.seabed_z is not None:
         L.static += world.seabed_scene(r_scene, L.rig, L.seabed_z, pl.centers + pl.image_centers)
+        if P.boulders:  # a stream of their own: the other presets' scenes stay as they were
+            L.static += round_boulders(np.random.default_rng([int(L.seed), 7919, 4343]), L.rig, L.seabed_z,
+                                       P.boulders, L.radius, pl.centers + pl.image_centers)
     if L.floor_z is not None:
         L.static += range_scenes.room(r_scene, L.floor_z)
 

@@ -38,7 +38,7 @@ class Preset:
     drift_m: one capture's sphere drifts this far (m) during its scan; the session then holds
         ``frames/<cam>/<id>_<j>.jpg`` recorded during that scan (a bag written from it shows the drift).
     corner_fraction: share of captures aimed near an image corner.
-    photo: "" (plain renders) or a photographic look, "gym" or "carried" (see the field's comment).
+    photo: "" (plain renders) or a photographic look, "gym", "carried" or "underwater" (see the field's comment).
     decoy_hidden: one capture (not the moved one) shows cam1 a decoy that looks exactly like the
         target beside it while a panel hides half of the true target (image only): a wrong image
         detection (calib_core.synth.world.decoy_and_occluder).
@@ -78,11 +78,15 @@ class Preset:
     decoy_hidden: bool = False
     # photographic look (calib_core.synth.photo.session): "" = the plain renderer; "gym" (glossy gym
     # ball of a shade drawn by seed, key light, cast and contact shadows, vignetting, exposure,
-    # textured room) or "carried" (foam ball with a seam / logo, some captures motion-blurred)
+    # textured room) or "carried" (foam ball with a seam / logo, some captures motion-blurred) or
+    # "underwater" (a float in the held-out underwater kind's water: calib_core.synth.photo.session)
     photo: str = ""
     # the cameras' lens model: "" = pinhole + plumb_bob, "fisheye" = OpenCV's equidistant model
     # (a wide dome-port camera, 110-160 deg across; intrinsics written as ROS "equidistant")
     lens: str = ""
+    # round boulders (half-buried spheres of about the target's size) on the seabed around the work
+    # area, seen by every sensor (calib_core.synth.boulders); 0 = none
+    boulders: int = 0
 
     def with_(self, **changes) -> "Preset":
         """A copy with some fields changed (e.g. ``scale=0.25`` for fast tests)."""
@@ -172,6 +176,14 @@ _LIST.append(Preset(
     "16-ring LiDAR (odd seeds); no background frames", n_cameras=3, n_captures=8, scene="lab",
     range_sensor="rgbd|lidar16", holder="hand", solid_ball=True, diameter_range=(0.3, 0.5), bright=True,
     n_backgrounds=0, photo="carried"))
+
+# the product's own domain, photographed (issue 11): the underwater image kind's water in a session
+_LIST.append(Preset(
+    "underwater", "a float (orange, white, yellow or dark) on a stand over a sand or gravel seabed with round "
+    "boulders of about its size around it; the photographs in the underwater image kind's water (per-channel "
+    "attenuation and backscatter, sunlight from above with caustics, a dive light, marine snow); two cameras with "
+    "a stereo transform, sonar; no background frames", n_cameras=2, n_captures=8, pan_step_deg=0.75,
+    scene="seabed", solid_ball=True, n_backgrounds=0, photo="underwater", boulders=6, cloud_format=".npy"))
 
 PRESETS: dict[str, Preset] = {p.name: p for p in _LIST}
 

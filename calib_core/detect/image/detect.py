@@ -114,10 +114,19 @@ HIDDEN_NAMED_SUPPORT = 0.3
 CUT = "sphere cut by the image border"
 
 
-def two_objects_reason(centres_uv_px) -> str:
-    """'two round objects: (u, v) and (u, v)' (the operator-readable refusal)."""
-    pts = " and ".join(f"({c[0]:.0f}, {c[1]:.0f})" for c in centres_uv_px)
-    return f"two round objects: {pts}"
+def two_objects_reason(centres_uv_px, radii_px=None, notes=None) -> str:
+    """'two round objects: (u, v) and (u, v)' (the operator-readable refusal); with ``radii_px``
+    each place also says its apparent radius ('(u, v) r 22 px'), with ``notes`` what is wrong
+    with it ('(u, v) r 32 px, cut by the image border')."""
+    parts = []
+    for k, c in enumerate(centres_uv_px):
+        s = f"({c[0]:.0f}, {c[1]:.0f})"
+        if radii_px is not None:
+            s += f" r {radii_px[k]:.0f} px"
+        if notes is not None and notes[k]:
+            s += f", {notes[k]}"
+        parts.append(s)
+    return f"two round objects: {' and '.join(parts)}"
 
 
 def _refusal(fits, cands, method) -> ImageDetection:
@@ -153,6 +162,27 @@ def _stronger_refused(fits, best):
                 and _evidence(f) >= 0.5 * _evidence(best)):
             return f
     return None
+
+
+def _clean_whole(f) -> bool:
+    """An accepted outline that is credible (mostly seen, round, the surroundings just outside it
+    unlike the sphere) and clean (fit score at least WEAK_FIT): a round object, not clutter."""
+    return f.ok and f.credible and f.score >= WEAK_FIT
+
+
+def _two_objects(objs, method: str, n_cands: int, fits) -> ImageDetection:
+    """'two round objects: ...' with each object's centre, apparent radius and, for a refused one
+    (cut by the border, partly hidden), why; ``two_candidates`` rows (u, v, range_m), strongest
+    evidence first (at most 3), for a caller with another clue (the sonar's prediction, a click)."""
+    objs = sorted(objs, key=lambda f: -_evidence(f))[:3]
+    radii = [_mean_radius(f.silhouette_px) for f in objs]
+    notes = ["" if f.ok else f.reason.removeprefix("sphere ") for f in objs]
+    return _not_found(two_objects_reason([f.centre_uv_px for f in objs], radii, notes), method,
+                      candidates=n_cands, rejected=_rejected(fits),
+                      two_candidates=[[round(float(f.centre_uv_px[0]), 2), round(float(f.centre_uv_px[1]), 2),
+                                       round(float(f.range_m), 4)] for f in objs],
+                      two_candidates_radius_px=[round(float(r), 2) for r in radii],
+                      two_candidates_notes=notes)
 
 
 def _rejected(fits) -> list[str]:
@@ -540,17 +570,20 @@ def _verdict(look, fits, cands, method, hinted: bool) -> ImageDetection:
     # outweighs the best accepted one: the accepted one is likely clutter, the sphere is there
     blocker = _stronger_refused(fits, good[0][1])
     if blocker is not None and not hinted:
-        u, v = blocker.centre_uv_px
+        if _clean_whole(good[0][1]):
+            # a clean, credible whole outline beside a stronger cut (or partly hidden) one: two
+            # round objects, both kept, so that the session's sonar prediction can choose
+            # (a cut boulder on the seabed must not hide a whole ball, nor be taken for it)
+            return _two_objects([f for _, f in good if _evidence(f) >= 0.5 * _evidence(good[0][1])] + [blocker],
+                                method, len(cands), fits)
+        u, v = blocker.centre_uv_px  # the accepted outline is ragged: likely clutter beside a cut sphere
         return _not_found(blocker.reason, method, candidates=len(cands),
                           partial_center_uv_px=[round(float(u), 2), round(float(v), 2)],
                           rejected=_rejected(fits))
     if len(good) > 1 and not hinted and _evidence(good[1][1]) >= 0.5 * _evidence(good[0][1]):
         # both kept (u, v, range_m): a caller with another clue (the sonar's range, a click)
         # can choose; the detector does not guess
-        return _not_found(two_objects_reason([f.centre_uv_px for _, f in good[:3]]), method,
-                          candidates=len(cands), two_candidates=[
-            [round(float(f.centre_uv_px[0]), 2), round(float(f.centre_uv_px[1]), 2), round(f.range_m, 4)]
-            for _, f in good[:3]])
+        return _two_objects([f for _, f in good[:3]], method, len(cands), fits)
     f = good[0][1]
     rival = _disputed_by(fits, f)
     if rival is not None and not hinted:
@@ -562,6 +595,7 @@ def _verdict(look, fits, cands, method, hinted: bool) -> ImageDetection:
         return _not_found("apparent size outside the plausible range", method)
     runner_up = _evidence(good[1][1]) / max(_evidence(f), 1e-9) if len(good) > 1 else 0.0
     det = _detection(f, look.radius_m, method, len(cands), runner_up)
+    det.extras["rival_share"] = round(_rival_share(fits, f), 4)
     if method == "hough-circle":
         h = hough_circle(look.img, f.centre_uv_px, det.radius_px)
         if h is None:
@@ -569,6 +603,34 @@ def _verdict(look, fits, cands, method, hinted: bool) -> ImageDetection:
         det.center_uv_px, det.radius_px, det.cov_uv_px2 = h[0], h[1], h[2]
         det.ellipse_px = ((float(h[0][0]), float(h[0][1])), (2 * h[1], 2 * h[1]), 0.0)
     return det
+
+
+# a round object elsewhere in the image counts as a rival of the accepted one when it is credible
+# and clean (accepted, or refused only as cut by the border or partly hidden), of a similar size
+# (radius within RIVAL_SIZE_RATIO) and its evidence at least RIVAL_MIN_EVIDENCE of the accepted one's
+RIVAL_SIZE_RATIO = 2.0
+RIVAL_MIN_EVIDENCE = 0.2
+
+
+def _rival_share(fits, f) -> float:
+    """Share of the round-object evidence in the image that is not the accepted outline ``f``:
+    sum of the rivals' evidence over (that + ``f``'s); 0 without rivals. One image with several
+    round objects of the sphere's size and contrast cannot say which one is the sphere."""
+    r_f, ev_f = _mean_radius(f.silhouette_px), _evidence(f)
+    rivals: list = []
+    for _, g in sorted(fits, key=lambda cf: -_evidence(cf[1]) if cf[1].silhouette_px is not None else 0.0):
+        if g is f or g.silhouette_px is None or not g.credible or g.score < WEAK_FIT:
+            continue
+        if not (g.ok or g.reason == CUT or "hidden" in g.reason):
+            continue
+        r_g = _mean_radius(g.silhouette_px)
+        if not 1 / RIVAL_SIZE_RATIO <= r_g / r_f <= RIVAL_SIZE_RATIO or _evidence(g) < RIVAL_MIN_EVIDENCE * ev_f:
+            continue
+        if any(np.hypot(*(g.centre_uv_px - h.centre_uv_px)) < max(r_f, r_g) for h in [f, *rivals]):
+            continue  # the same object again
+        rivals.append(g)
+    ev = sum(_evidence(g) for g in rivals)
+    return float(ev / (ev + ev_f)) if ev > 0 else 0.0
 
 
 DISPUTED = "two fits of one outline disagree"

@@ -24,8 +24,9 @@ from calib_core.detect.image.cone import (ConeFit, centre_uv_and_cov, fit_cone, 
 from calib_core.detect.image.edges import (edge_peaks, edge_widths, gradient_magnitude, outward_normals,
                                            pick_edges, ray_directions, sample_profiles, smooth_roi)
 from calib_core.detect.image.blur import (BLUR_MAX_RADIUS_FRACTION, CLEAN_RMS_FRAC, CLEAN_RMS_PX,  # noqa: F401
-                                          SHARP_EDGE_WIDTH_PX, SMALL_RADIUS_PX, blur_floor_px2, clean_rms_px,
+                                          SHARP_EDGE_WIDTH_PX, SMALL_RADIUS_PX, blur_floor_px2, clean_rms_px, is_blurred,
                                           outline_rms_limit_px)
+from calib_core.detect.image import smear
 from calib_core.detect.image.region import Candidate
 
 SMOOTH_SIGMA_PX = 1.0
@@ -90,6 +91,7 @@ class _Signal:
     def __init__(self, image: np.ndarray, background: np.ndarray | None, box):
         x0, y0, x1, y1 = box
         self.origin, self.box = (float(x0), float(y0)), box
+        self._source = (image, background)  # (for :meth:`around`)
         self.diff = None
         if background is not None:
             d = cv2.subtract(image[y0:y1, x0:x1].astype(np.float32), background[y0:y1, x0:x1])
@@ -101,6 +103,20 @@ class _Signal:
         else:
             self.img = smooth_roi(image, x0, y0, x1, y1, SMOOTH_SIGMA_PX)
         self._noise = None
+
+    def around(self, pts: np.ndarray, margin_px: float) -> "_Signal":
+        """This signal, or the same over a region widened to hold ``pts`` (K,2 px) and their
+        ``margin_px`` neighbourhood (a reading that looks farther than the region was cut for:
+        the smear's ramp windows; the region is sized from the candidate's coarse radius)."""
+        if self.covers(pts, margin_px).all() or not np.isfinite(pts).all():
+            return self
+        image, background = self._source
+        H, W = image.shape[:2]
+        lo, hi = pts.min(axis=0) - margin_px - 2, pts.max(axis=0) + margin_px + 3
+        x0, y0, x1, y1 = self.box
+        box = (max(0, min(x0, int(lo[0]))), max(0, min(y0, int(lo[1]))),
+               min(W, max(x1, int(hi[0]))), min(H, max(y1, int(hi[1]))))
+        return _Signal(image, background, box)
 
     def covers(self, pts: np.ndarray, margin_px: float) -> np.ndarray:
         """(K,) True where a point and its ``margin_px`` neighbourhood lie in the region (outside
@@ -405,6 +421,9 @@ def _fitted(cam, sig: _Signal, p2, R: float, sphere_radius_m: float) -> tuple[Ca
     visible = cam.in_image(sil_f, margin_px=0.05 * R + 8)
     outside_bad = _outside_mismatch(sig, sil_f[visible], outward_normals(sil_f, sil_f.mean(axis=0))[visible], R) \
         if visible.sum() >= 8 else 1.0
+    if fit.smear is not None:  # (read as a motion smear: its measured length and direction)
+        res.extras["smear_px"] = round(fit.smear.length_px, 2)
+        res.extras["smear_deg"] = round(float(np.degrees(fit.smear.angle_rad)), 1)
     res.extras["outside_mismatch"] = round(outside_bad, 4)
     res.extras["outline_coverage"] = round(support, 3)
     return res, outside_bad
@@ -446,12 +465,9 @@ def pass2_half_px(sigma_px: float, R: float) -> float:
     return max(3.0, 3.0 * sigma_px + 1.5, 0.02 * R)
 
 
-def _pass2(cam, sig, fit1: ConeFit, R: float, a_range_rad, rng):
-    """Edges along the normals of ``fit1``'s outline, refitted: (fit, used mask, strengths, K,
-    edge widths). When that outline is not round for its edge width, the same normals are read
-    again on profiles smoothed along them (BLUR_SCALES_PX): a motion-smeared edge is a ramp
-    whose gradient is a low plateau, studded with the sharp edges of the still scene seen
-    through the ramp; its smoothed gradient peaks at the ramp's middle, where the outline is."""
+def _outline_normals(cam, fit1: ConeFit):
+    """(outline px (K,2), its normalised points, outward normals, K, perimeter px) of a fit's
+    outline, one normal per EDGE_SPACING_PX; None when the outline is not all in front."""
     sil = silhouette_uv(cam, fit1.w, fit1.a_rad, n=180)
     if not np.isfinite(sil).all():
         return None
@@ -461,22 +477,105 @@ def _pass2(cam, sig, fit1: ConeFit, R: float, a_range_rad, rng):
     sil = cam.distort(sil_xy)
     ctr = cam.project(fit1.w[None, :])[0]
     nrm = outward_normals(sil, sil.mean(axis=0) if np.isfinite(ctr).all() else ctr)
-    geo = (sil, sil_xy, nrm, k2, perim)
+    return sil, sil_xy, nrm, k2, perim
+
+
+def _smear_read(cam, sig, fit1: ConeFit, R: float, a_range_rad, geo, half: float):
+    """:func:`_pass2_smear`, then once more along the normals of its own outline (the ramps'
+    windows centred on them: the reading no longer depends on where the start put them)."""
+    first = _pass2_smear(cam, sig, fit1, R, a_range_rad, geo, half)
+    geo2 = None if first is None else _outline_normals(cam, first[0])
+    if geo2 is None:
+        return first
+    again = _pass2_smear(cam, sig, first[0], R, a_range_rad, geo2, pass2_half_px(first[0].sigma_px, R))
+    return again if again is not None and again[0].inliers.sum() >= first[0].inliers.sum() * 0.9 else first
+
+
+def _pass2(cam, sig, fit1: ConeFit, R: float, a_range_rad, rng):
+    """Edges along the normals of ``fit1``'s outline, refitted: (fit, used mask, strengths, K,
+    edge widths). When that outline is not round for its edge width, the same normals are read
+    again on profiles smoothed along them (BLUR_SCALES_PX): a motion-smeared edge is a ramp
+    whose gradient is a low plateau, studded with the sharp edges of the still scene seen
+    through the ramp; its smoothed gradient peaks at the ramp's middle, where the outline is."""
+    geo = _outline_normals(cam, fit1)
+    if geo is None:
+        return None
     half = pass2_half_px(fit1.sigma_px, R)
     best = _pass2_reading(cam, sig, fit1, R, a_range_rad, rng, geo, half, 0.0)
     if best is None or best[0].sigma_px > 0.5 * clean_rms_px(R) or best[0].inliers.mean() < 0.9:
         alt = _pass2_several(cam, sig, fit1, R, a_range_rad, geo, max(half, PASS2_SEVERAL_HALF_FRAC * R))
         if alt is not None and _searched_held(cam, sig, alt, R) and (best is None or _quality(alt[0]) > _quality(best[0])):
             best = alt
+    if R >= SMALL_RADIUS_PX and (best is None or is_blurred(_median_width(best))
+                                 or best[0].sigma_px > outline_rms_limit_px(R, _median_width(best))):
+        # a blurred or ragged outline: read it as a motion smear's ramps when the edge widths
+        # around it say the blur is one (smear.py)
+        alt = _smear_read(cam, sig, fit1, R, a_range_rad, geo, half)
+        if alt is not None and _smear_held(cam, sig, alt, R) and (best is None or _quality(alt[0]) > _quality(best[0])):
+            best = alt
     for s in BLUR_SCALES_PX:
         if best is not None and best[0].sigma_px <= outline_rms_limit_px(R, _median_width(best)):
             break
         if R < SMALL_RADIUS_PX or 2.3548 * s > BLUR_MAX_RADIUS_FRACTION * R:
             break  # (no smear on a small blob, none wider than a quarter radius: as outline_rms_limit_px)
-        alt = _pass2_reading(cam, sig, fit1, R, a_range_rad, np.random.default_rng(k2), geo, half + 3.0 * s, s)
+        alt = _pass2_reading(cam, sig, fit1, R, a_range_rad, np.random.default_rng(geo[3]), geo, half + 3.0 * s, s)
         if alt is not None and _smoothed_held(alt, R) and (best is None or _quality(alt[0]) > _quality(best[0])):
             best = alt
     return best
+
+
+def _pass2_smear(cam, sig: _Signal, fit1: ConeFit, R: float, a_range_rad, geo, half: float):
+    """Pass 2 read as a motion smear (:mod:`calib_core.detect.image.smear`): each normal's edge
+    is the middle of the ramp its profile matches best, at the width the smear measured around
+    the outline predicts there; None unless that smear is real (its anisotropy stands out from
+    its standard error). An edge must stand for a colour step the region's noise and texture do
+    not make (a step whose sharp gradient would pass pass 2's EDGE_NOISE_FACTOR) and at least
+    0.3 of the typical step (as pass 2's readings). Same return as :func:`_pass2_reading`, the
+    widths being the smear model's; its own random stream."""
+    sil, sil_xy, nrm, k2, perim = geo
+    reach = smear.window_px(R)
+    t2 = np.arange(-half - reach, half + reach + 0.25, smear.STEP_PX)
+    sig = sig.around(sil, half + reach + 1.0)
+    use = cam.in_image(sil, margin_px=1.0) & sig.covers(sil, half + reach + 1.0)
+    if use.sum() < 12:
+        return None
+    theta = np.arctan2(nrm[use, 1], nrm[use, 0])
+    min_step = EDGE_NOISE_FACTOR * sig.noise * np.sqrt(2 * np.pi) * SMOOTH_SIGMA_PX
+    te, step, w_k, sm = smear.read(sig.colour_profiles(sil[use], nrm[use], t2), t2, np.abs(t2) <= half, theta,
+                                   R, max(1.0, CORR_LENGTH_PX * k2 / perim), min_step)
+    if not sm.real:
+        return None
+    keep = step >= max(0.3 * float(np.median(step)), min_step)
+    ok2 = np.zeros(k2, bool)
+    ok2[np.flatnonzero(use)[keep]] = True
+    if ok2.sum() < 12:
+        return None
+    uv2 = sil[ok2] + te[keep, None] * nrm[ok2]
+    xy2 = normalize_near(cam, uv2, sil_xy[ok2], iterations=3)
+    fit = _pass2_fit(cam, xy2, fit1, R, a_range_rad, np.random.default_rng(k2), k2, perim)
+    # (the smear at most MAX_RADIUS_FRACTION of the fitted outline's radius, as of the bank's)
+    if fit is None or sm.length_px > smear.MAX_RADIUS_FRACTION * cam.fx * np.tan(fit.a_rad):
+        return None
+    fit.reading = "smear"
+    fit.smear = sm
+    s2 = np.zeros(k2)
+    s2[ok2] = step[keep] / (np.sqrt(2 * np.pi) * SMOOTH_SIGMA_PX)  # (as a sharp step's gradient peak)
+    return fit, ok2, s2, k2, w_k[keep]
+
+
+def _smear_held(cam, sig: _Signal, p2, R: float) -> bool:
+    """A smear reading's fit held like the other outlines searched for (:func:`_outline_held`:
+    the tight refit's standard for its edge width, the surroundings just outside it, one hue
+    inside per long arc with a colour step across the outline on each): it is searched for among
+    ramp widths and positions, and oriented texture (brick courses) has edge widths that vary with
+    the angle as a smear's do."""
+    fit, _, _, k2, _ = p2
+    sil = silhouette_uv(cam, fit.w, fit.a_rad, n=k2)
+    visible = cam.in_image(sil, margin_px=0.05 * R + 8)
+    if visible.sum() < 8 or not np.isfinite(sil).all():
+        return False
+    outside_bad = _outside_mismatch(sig, sil[visible], outward_normals(sil, sil.mean(axis=0))[visible], R)
+    return _outline_held(sig, fit, float(fit.inliers.sum()) / k2, _median_width(p2), sil, R, outside_bad, need_step=True)
 
 
 # the several-edges reading of pass 2 looks this far (x the coarse radius) either side of the

@@ -35,6 +35,7 @@ import numpy as np
 from scipy.ndimage import gaussian_filter1d
 
 from calib_core.camera import CameraModel
+from calib_core.detect.image import smear
 from calib_core.detect.image.blur import blur_floor_px2, blur_range_floor_m, is_blurred
 from calib_core.detect.image.cone import (ConeFit, centre_uv_and_cov, normalize_near, orthonormal_basis,
                                           px_per_rad, rays_from_xy, silhouette_uv, silhouette_xy)
@@ -97,6 +98,29 @@ def edge_points(cam: CameraModel, sig: _Signal, w: np.ndarray, a: float, band_px
     tt = t[mi] + 0.5 * np.clip(off, -0.5, 0.5)
     widths = np.sqrt(np.maximum(edge_widths(t, g[ki], tt) ** 2 - (2.3548 * smooth_px) ** 2, 0.0))
     return sil[ki] + tt[:, None] * nrm[ki], ki, int(inside.sum()), g1, widths
+
+
+def ramp_points(cam: CameraModel, sig: _Signal, w: np.ndarray, a: float, band_px: float):
+    """One edge per normal of the predicted outline, read as a motion smear's ramp
+    (:func:`calib_core.detect.image.smear.read`): the same return as :func:`edge_points` (the
+    widths being the smear model's), and the measured :class:`~calib_core.detect.image.smear.Smear`."""
+    R = cam.fx * np.tan(a)
+    k = int(np.clip(2 * np.pi * R / 2.0, 64, 360))
+    sil = cam.distort(silhouette_xy(w, a, k))
+    nrm = outward_normals(sil, sil.mean(axis=0))
+    reach = smear.window_px(R)
+    t = np.arange(-band_px - reach, band_px + reach + 0.25, smear.STEP_PX)
+    use = cam.in_image(sil + (band_px + reach) * nrm, margin_px=1.0) & cam.in_image(sil - (band_px + reach) * nrm, margin_px=1.0)
+    use &= sig.covers(sil, band_px + reach + 1.0)
+    if use.sum() < 12:
+        return None
+    theta = np.arctan2(nrm[use, 1], nrm[use, 0])
+    min_step = EDGE_NOISE_FACTOR * sig.noise * np.sqrt(2 * np.pi) * SMOOTH_SIGMA_PX
+    te, step, w_k, sm = smear.read(sig.colour_profiles(sil[use], nrm[use], t), t, np.abs(t) <= band_px, theta, R,
+                                   CORR_LENGTH_PX / EDGE_SPACING_PX, min_step)
+    keep = step >= min_step
+    ki = np.flatnonzero(use)[keep]
+    return (sil[ki] + te[keep, None] * nrm[ki], ki, int(use.sum()), step[keep], w_k[keep]), sm
 
 
 def best_circle(pts: np.ndarray, centre0: np.ndarray, r: float, max_shift: float,
@@ -197,14 +221,23 @@ class _Reading:
     basis: tuple  # (e1, e2) of that plane
     edge_width_px: float  # median FWHM of the outline's edges (smoothing taken out)
     smooth_px: float
+    smear: object | None = None  # the motion smear measured, when read as one (image.smear.Smear)
 
 
 def _read(cam, sig: _Signal, w0, a0: float, band: float, max_shift_q: float, seed: int,
-          smooth_px: float) -> _Reading | None:
-    """Edges along the predicted outline's normals (smoothed by ``smooth_px``), the circle of the
-    predicted size through most of them, and the cone fitted with the size prior; None when no
-    such circle or fit."""
-    pts, normal_of, k, _, widths = edge_points(cam, sig, w0, a0, band, smooth_px)
+          smooth_px: float, ramps: bool = False) -> _Reading | None:
+    """Edges along the predicted outline's normals (smoothed by ``smooth_px``; with ``ramps``
+    one per normal, read as a motion smear's ramps, and only when that smear is real), the
+    circle of the predicted size through most of them, and the cone fitted with the size prior;
+    None when no such circle or fit."""
+    sm = None
+    if ramps:
+        got = ramp_points(cam, sig, w0, a0, band)
+        if got is None or not got[1].real:
+            return None
+        (pts, normal_of, k, _, widths), sm = got
+    else:
+        pts, normal_of, k, _, widths = edge_points(cam, sig, w0, a0, band, smooth_px)
     # in the plane tangent to the predicted axis the outline is a circle of radius fx tan(a)
     # (in raw pixels an off-axis sphere is an ellipse, stretched by the lens)
     xy_all = normalize_near(cam, pts)
@@ -220,7 +253,7 @@ def _read(cam, sig: _Signal, w0, a0: float, band: float, max_shift_q: float, see
     if fit is None:
         return None
     width = float(np.median(widths[keep][fit.inliers])) if fit.inliers.any() else float("nan")
-    return _Reading(fit, float(fit.inliers.sum()) / max(k, 1), k, q, normal_of, (e1, e2), width, smooth_px)
+    return _Reading(fit, float(fit.inliers.sum()) / max(k, 1), k, q, normal_of, (e1, e2), width, smooth_px, sm)
 
 
 def _smoothed(cam, sig: _Signal, w0, a0: float, band: float, max_shift_q: float, seed: int, R: float,
@@ -250,6 +283,22 @@ def _smoothed(cam, sig: _Signal, w0, a0: float, band: float, max_shift_q: float,
     return raw if len(widths) == 1 else replace(best, edge_width_px=float(np.nanmax(widths)))
 
 
+def _ramped(cam, sig: _Signal, w0, a0: float, band: float, max_shift_q: float, seed: int, R: float,
+            peaks: _Reading) -> _Reading:
+    """A motion smear read around the outline (smear.py), when it is real and its ramps lie on
+    MIN_SUPPORT of the outline, round: its edge width (the smear model's median) is the floor's
+    when wider than the peaks' (the studs of the still scene seen through a smear hide it from
+    the peaks' widths: motion s1000, 9 px of smear, every peak reading's median width 3.7-3.8 px,
+    2.28 px off with a stated 0.13 px). The edges are the ramps' middles when the peaks' own
+    edges are blurred; a sharp peak reading keeps its edges (a short smear measured on an
+    outline whose touching edges vary in width, chair s1002, is no reason to read it otherwise)."""
+    alt = _read(cam, sig, w0, a0, band, max_shift_q, seed, 0.0, ramps=True)
+    if alt is None or alt.support < MIN_SUPPORT or alt.fit.sigma_px > clean_rms_px(R):
+        return peaks
+    width = float(np.nanmax([alt.edge_width_px, peaks.edge_width_px]))
+    return replace(alt if is_blurred(peaks.edge_width_px) else peaks, edge_width_px=width, smear=alt.smear)
+
+
 def detect_at_prediction(image: np.ndarray, cam: CameraModel, sphere_radius_m: float, uv_px, radius_px: float,
                          background: np.ndarray | None = None, shift_frac: float = 0.3,
                          seed: int = 0) -> ImageDetection:
@@ -272,10 +321,13 @@ def detect_at_prediction(image: np.ndarray, cam: CameraModel, sphere_radius_m: f
     reading = _read(*look, 0.0)
     if reading is None:
         return _not_found(nothing, looked_at=[round(float(x), 1) for x in uv_px])
+    peaks = reading
     if R >= SMALL_RADIUS_PX:  # (no smear on a small blob: as fit.outline_rms_limit_px)
-        reading = _smoothed(*look, R, reading)
+        peaks = reading = _smoothed(*look, R, reading)
+        reading = _ramped(*look, R, reading)
     det = _verdict(cam, reading, R, sphere_radius_m, uv_px)
-    null = _null_support(cam, reading.q, reading.normal_of, reading.k, reading.fit, w0, *reading.basis)
+    # (against every peak: one ramp per normal would meet the moved outlines less often)
+    null = _null_support(cam, peaks.q, peaks.normal_of, peaks.k, reading.fit, w0, *peaks.basis)
     det.extras["null_support"] = round(null[1], 4)
     if det.found and null[0] - null[1] < NULL_MARGIN:
         return _not_found(f"no outline standing out from the texture {WHERE}", **det.extras)
@@ -304,6 +356,8 @@ def _verdict(cam, reading: _Reading, R: float, sphere_radius_m: float, uv_px) ->
     extras = {"support": round(support, 4), "edge_rms_px": round(float(fit.sigma_px), 4),
               "edge_width_px": round(reading.edge_width_px, 3), "edge_smoothing_px": reading.smooth_px,
               "prediction_uv_px": [round(float(x), 2) for x in uv_px], "prediction_radius_px": round(R, 2)}
+    if reading.smear is not None:  # (read as a motion smear: its measured length and direction)
+        extras.update(smear_px=round(reading.smear.length_px, 2), smear_deg=round(float(np.degrees(reading.smear.angle_rad)), 1))
     if not cam.in_image(sil, margin_px=1.0).all():
         return _not_found(CUT_HERE, **extras)
     if fit.sigma_px > clean_rms_px(R):

@@ -41,8 +41,10 @@ The effective beam width (down to 0) is estimated per session with
 Approximations: circular uniform beam cone (no beam pattern, side lobes or multipath). The
 covariance is the fit's (range noise) plus an isotropic model-error floor of
 ``MODEL_FLOOR_BEAM_FRACTION`` of the beam footprint (range x beam width), set so that the centre
-errors on synthetic sessions have a mean squared Mahalanobis distance of ~1 per axis (it was ~7
-without the floor: `benchmarks/bench_detection_sonar.py`). Real beams will need more, which the
+errors on synthetic sonar sessions and single captures have a mean squared Mahalanobis distance
+of ~1 per axis (`benchmarks/bench_range_cov.py --floors`; re-derived on the simulator whose
+beam's sub-rays average on its axis: 0.02 had been sized on a tilted one and stated twice the
+error in sd). Real beams will need more, which the
 solver's chi-square inflation then supplies. The fit's covariance does not let returns grazing the
 limb pin the centre (:func:`calib_core.detect.sonar.fit._cov_jacobian`), and the final cone fit is
 averaged with the one without a footprint, weighed by the capture's own returns
@@ -105,7 +107,7 @@ DIAMETER_WARN = 0.06  # relative: above it a found sphere carries a warning
 CLEAR_WINNER = 3.0  # score ratio above which the best of two same-size candidates is taken
 FREE_ARC = 3  # of 16 sectors, in one run: what a hand, a stick or a chain continues of a ball's outline
 BODY_ARC = 5  # of 16 (over 110 deg): a round thing on a larger body (a head on shoulders, a rock in the seabed)
-MODEL_FLOOR_BEAM_FRACTION = 0.02  # 1-sigma model error per axis, as a fraction of range x beam width
+MODEL_FLOOR_BEAM_FRACTION = 0.006  # 1-sigma model error per axis, as a fraction of range x beam width
 
 
 @dataclass

@@ -1,4 +1,5 @@
-"""Photographic looks of the session presets "gym" and "carried-photo" (``Preset.photo``).
+"""Photographic looks of the session presets "gym", "carried-photo" and "underwater" (``Preset.photo``;
+the underwater look's water, lights and snow: :mod:`calib_core.synth.photo.water_session`).
 
 The session generator renders these presets with :mod:`calib_core.synth.photo.effects` switched on:
 
@@ -26,11 +27,12 @@ import numpy as np
 
 from calib_core.synth import room
 from calib_core.synth.camera_render import render_radiance
+from calib_core.synth.photo import water_session
 from calib_core.synth.photo.effects import BallLook, Photo, motion_composite
 from calib_core.synth.photo.cases import draw_photo, gym_look, key_dir, metered, rand_dir
 from calib_core.synth.scene import Material, Scene, Sphere
 
-KINDS = ("gym", "carried")
+KINDS = ("gym", "carried", "underwater")
 MOTION_SHARE = 0.4  # share of "carried" captures with motion blur
 MOTION_PX_1080P = (2.0, 24.0)  # blur length range at scale 1
 MOVING_TAGS = ("target", "hand")  # what moves with a carried ball
@@ -45,7 +47,9 @@ class SessionLook:
     ball: BallLook  # markings and gloss (centre set per capture)
     floor: Material
     wall: Material
-    air: object  # camera_render.Water: indoor air and light (no water veil)
+    air: object  # camera_render.Water: indoor air and light (no water veil); underwater: the water
+    seabed: Material | None = None  # the seabed's look (underwater)
+    dive: object = None  # water_session.DiveLight (underwater)
 
 
 @dataclass(frozen=True)
@@ -54,6 +58,7 @@ class CaptureLight:
 
     photo: Photo
     motion_px: tuple | None  # (dx, dy) px of the ball during the exposure, None = still
+    snow: float = 0.0  # marine snow particles per 960x540 image (underwater)
 
 
 def session_look(kind: str, seed: int, radius_m: float) -> SessionLook:
@@ -61,6 +66,9 @@ def session_look(kind: str, seed: int, radius_m: float) -> SessionLook:
     if kind not in KINDS:
         raise ValueError(f"unknown photo look {kind!r}; use one of {KINDS}")
     rng = np.random.default_rng([int(seed), 7919, 4242])
+    if kind == "underwater":
+        mat, ball, seabed, wall, water, dive = water_session.session_parts(rng, radius_m)
+        return SessionLook(kind, mat, ball, seabed, wall, water, seabed, dive)
     if kind == "gym":
         alb, ball = gym_look(rng, (0.0, 0.0, 0.0), radius_m)
         mat = Material(alb, 0.9, "foam", float(rng.uniform(0.02, 0.06)), float(rng.uniform(0.0, 0.05)),
@@ -89,6 +97,8 @@ def _brick(rng) -> Material:
 def dress(scene: Scene, look: SessionLook) -> Scene:
     """The scene as photographed: the ball's and the room's materials replaced."""
     new = {"floor": look.floor, "wall": look.wall}
+    if look.seabed is not None:
+        new["seabed"] = look.seabed
     prims = []
     for p in scene.primitives:
         if p.tag == "target" and isinstance(p, Sphere):
@@ -102,6 +112,9 @@ def dress(scene: Scene, look: SessionLook) -> Scene:
 def capture_light(look: SessionLook, seed: int, k: int, centre, radius_m: float, eye, scale: float) -> CaptureLight:
     """Capture ``k``'s key light, shadows and (carried ball) motion blur."""
     rng = np.random.default_rng([int(seed), 7919, 5000 + int(k)])
+    if look.dive is not None:
+        photo, snow = water_session.capture_photo(rng, look.dive, look.ball, centre, radius_m, eye)
+        return CaptureLight(photo, None, snow)
     c = tuple(float(x) for x in centre)
     ball = replace(look.ball, centre_m=c, radius_m=float(radius_m))
     photo = Photo(key_dir=key_dir(rng, c, eye), softness=float(rng.uniform(0.02, 0.12)),
@@ -121,7 +134,9 @@ def render_capture(scene: Scene, cam, T_wc, water, aa: int, light: CaptureLight,
                         light.photo.ball, scale)
     photo = replace(light.photo, vignette=cam_fx.vignette, wb_gains=cam_fx.wb_gains, bloom_px=cam_fx.bloom_px,
                     bloom_gain=cam_fx.bloom_gain)
+    water = water_session.water_for(water, photo)  # (underwater: the dive light's glow along its axis)
     L, hit = render_radiance(scene, cam, T_wc, water, aa=aa, photo=photo)
+    L = water_session.add_snow(L, rng, light.snow, scale)
     if light.motion_px is not None:
         L0, _ = render_radiance(scene.without(*MOVING_TAGS), cam, T_wc, water, aa=aa,
                                 photo=replace(photo, occluders=()))
