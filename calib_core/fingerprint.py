@@ -47,8 +47,10 @@ DETECTOR_SOURCES = ("detect/**/*.py", "pipeline.py", "disambiguate/*.py", "stere
                     "io/images.py", "io/clouds.py", "io/cloud_ascii.py", "io/cloud_binary.py", "io/off.py",
                     "io/intrinsics.py", "io/kalibr.py")
 
-# "from calib_core.a.b import c, d" and "import calib_core.a.b", anywhere in a file
-_IMPORT = re.compile(r"^[ \t]*(?:from[ \t]+(calib_core(?:\.\w+)*)[ \t]+import[ \t]+\(?([\w ,\t]+)|import[ \t]+(calib_core(?:\.\w+)*))", re.M)
+# "from calib_core.a.b import c, d", "from calib_core.a import (\n c,\n)" and "import calib_core.a.b",
+# anywhere in a file
+_IMPORT = re.compile(r"^[ \t]*(?:from[ \t]+(calib_core(?:\.\w+)*)[ \t]+import[ \t]+(\([^)]*\)|[\w ,\t]+)"
+                     r"|import[ \t]+(calib_core(?:\.\w+)*))", re.M)
 
 
 def _module_file(package_dir: Path, dotted: str) -> Path | None:
@@ -65,7 +67,7 @@ def _imported_files(package_dir: Path, f: Path) -> set[Path]:
     out = set()
     for m in _IMPORT.finditer(f.read_text(encoding="utf-8")):
         base = m.group(1) or m.group(3)
-        names = [n for n in re.split(r"[\s,]+", m.group(2) or "") if n and n != "as"]
+        names = [n for n in re.findall(r"\w+", re.sub(r"#[^\n]*", "", m.group(2) or "")) if n != "as"]
         for dotted in (base, *(f"{base}.{n}" for n in names)):
             if (g := _module_file(package_dir, dotted)) is not None:
                 out.add(g)

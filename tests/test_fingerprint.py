@@ -145,3 +145,19 @@ def test_a_module_imported_inside_a_detector_function_changes_the_digest(tmp_pat
     assert fpm.source_digest(pkg) == before
     (pkg / "helper_x.py").write_text("K = 2\n")
     assert fpm.source_digest(pkg) != before
+
+
+def test_a_module_imported_in_a_parenthesised_multiline_import_is_in_the_fingerprint(tmp_path):
+    """``from calib_core.x import (\\n    y,\\n)`` (black's style for long imports): both the module
+    and a submodule named inside the parentheses are followed (the regex once stopped at the
+    line break and dropped the whole import)."""
+    pkg = tmp_path / "calib_core"
+    (pkg / "detect").mkdir(parents=True)
+    (pkg / "util").mkdir()
+    (pkg / "util" / "__init__.py").write_text("")
+    (pkg / "util" / "helper_y.py").write_text("K = 1\n")
+    (pkg / "deep_z.py").write_text("K = 1\n")
+    (pkg / "detect" / "x.py").write_text(
+        "from calib_core.util import (\n    helper_y,  # a comment\n)\nfrom calib_core.deep_z import (\n    K,\n)\n")
+    covered = {p.relative_to(pkg).as_posix() for p in fpm.source_files(pkg)}
+    assert {"util/__init__.py", "util/helper_y.py", "deep_z.py"} <= covered
