@@ -83,3 +83,12 @@ def test_the_checker_tells_a_stale_reference_from_a_good_one():
 
 def test_docstring_references_name_existing_modules():
     assert stale_refs() == []
+
+
+def test_the_readme_lists_every_synth_preset():
+    """The README's ``sonarcal synth`` row names each preset (a new one, "underwater", was missing)."""
+    from calib_core.synth.presets import PRESETS
+
+    row = next(line for line in (ROOT / "README.md").read_text(encoding="utf-8").splitlines()
+               if line.startswith("| `sonarcal synth"))
+    assert [p for p in PRESETS if not re.search(rf"(?<![\w-]){re.escape(p)}(?![\w-])", row)] == []
