@@ -84,6 +84,11 @@ def enclosing_candidates(cands: list[Candidate], r_bounds_px: tuple[float, float
 BODY_SCATTER_SIGMAS = 2.0   # how far (x the larger outline's edge RMS) the inner one may reach past it
 BODY_MIN_EXCESS_SIGMAS = 3.0  # how much larger (x that RMS, and >= BODY_MIN_EXCESS_PX) the body must be
 BODY_MIN_EXCESS_PX = 2.0
+# ... and an element is smaller than its body by more than a second reading of the same limb can
+# differ: an outline within 0.8 of another's size around the same place is that object read again
+# (the shadow or halo around a ball, _good_fits' same-object rule), not a pentagon or a panel on it
+# (glossy s6: the ball's own outline, r 59.7 px, inside the ball-and-shadow outline, r 62.2 px)
+BODY_MIN_RATIO = 1.0 / 0.8
 
 
 def _radius(sil: np.ndarray) -> float:
@@ -110,9 +115,10 @@ def is_body(g, outside_limit: float, min_support: float, rms_limits: float) -> b
 
 def lies_inside(f, g) -> bool:
     """Whether fit ``f``'s whole outline lies inside fit ``g``'s (up to BODY_SCATTER_SIGMAS of
-    ``g``'s edge RMS) and ``g`` is larger by more than its scatter."""
+    ``g``'s edge RMS) and ``g`` is larger by more than its scatter and by BODY_MIN_RATIO."""
     s_g = float(g.fit.sigma_px)
-    if _radius(g.silhouette_px) < _radius(f.silhouette_px) + max(BODY_MIN_EXCESS_PX, BODY_MIN_EXCESS_SIGMAS * s_g):
+    r_f, r_g = _radius(f.silhouette_px), _radius(g.silhouette_px)
+    if r_g < r_f + max(BODY_MIN_EXCESS_PX, BODY_MIN_EXCESS_SIGMAS * s_g) or r_g < BODY_MIN_RATIO * r_f:
         return False
     poly = g.silhouette_px.astype(np.float32)
     worst = min(cv2.pointPolygonTest(poly, (float(u), float(v)), True) for u, v in f.silhouette_px[::3])
