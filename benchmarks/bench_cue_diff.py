@@ -37,14 +37,17 @@ def _off(cands, r_bounds, most=3):
     return []
 
 
-def _outcome(case, with_ball):
-    det = im.detect_sphere_in_image(case.image, case.cam, case.radius_m)
+def outcome(case, with_ball, bg=False):
+    """What the detector makes of ``case`` (with its background frame when ``bg``): found, right
+    (within bip.TOL_PX of the truth, ball present), error (px), score, reason."""
+    det = im.detect_sphere_in_image(case.image, case.cam, case.radius_m, background=case.background if bg else None)
     err = float(np.hypot(*(det.center_uv_px - case.true_uv_px))) if det.found else None
     right = det.found and with_ball and err <= bip.TOL_PX
     return {"found": det.found, "right": right, "err": err, "score": det.score, "reason": det.reason}
 
 
-def _text(o):
+def outcome_text(o):
+    """One outcome as the image listings print it."""
     if not o["found"]:
         return f"missed ({o['reason']})"
     return f"{'hit' if o['right'] else 'WRONG'} err {o['err']:.2f} score {o['score']:.2f}" if o["err"] is not None \
@@ -61,11 +64,11 @@ def run(kinds, seeds, negatives):
                 case = bip._case(kind, seed, 0.5, with_ball=wb)
                 CALLED.clear()
                 im.enclosing_candidates = _spy
-                on = _outcome(case, wb)
+                on = outcome(case, wb)
                 off = on
                 if any(CALLED):
                     im.enclosing_candidates = _off
-                    off = _outcome(case, wb)
+                    off = outcome(case, wb)
                 im.enclosing_candidates = REAL
                 n, nn = n + wb, nn + (not wb)
                 for key, o in (("off", off), ("on", on)):
@@ -75,7 +78,7 @@ def run(kinds, seeds, negatives):
                     else:
                         tally[key][2] += o["found"]
                 if (off["found"], off["right"], off["err"]) != (on["found"], on["right"], on["err"]):
-                    print(f"{case.label}{'' if wb else ' (ball-free)'}: {_text(off)} -> {_text(on)}")
+                    print(f"{case.label}{'' if wb else ' (ball-free)'}: {outcome_text(off)} -> {outcome_text(on)}")
         rows.append((kind, n, nn, tally))
     print("\n| kind | images | hits off -> on | wrong centres off -> on | ball-free finds off -> on |")
     print("|---|---|---|---|---|")

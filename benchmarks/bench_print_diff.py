@@ -27,6 +27,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 import benchmarks.bench_image_presets as bip  # noqa: E402
+from benchmarks.bench_cue_diff import outcome, outcome_text  # noqa: E402
 from calib_core.detect.image import detect as im  # noqa: E402
 from calib_core.detect.image import fit as fm  # noqa: E402
 
@@ -91,29 +92,15 @@ def _rules(on: bool) -> None:
     im._print_cue = _spy_cue if on else _print_cue_old
 
 
-def _outcome(case, with_ball, bg):
-    det = im.detect_sphere_in_image(case.image, case.cam, case.radius_m, background=case.background if bg else None)
-    err = float(np.hypot(*(det.center_uv_px - case.true_uv_px))) if det.found else None
-    right = det.found and with_ball and err <= bip.TOL_PX
-    return {"found": det.found, "right": right, "err": err, "score": det.score, "reason": det.reason}
-
-
-def _text(o):
-    if not o["found"]:
-        return f"missed ({o['reason']})"
-    return f"{'hit' if o['right'] else 'WRONG'} err {o['err']:.2f} score {o['score']:.2f}" if o["err"] is not None \
-        else f"found (ball-free) score {o['score']:.2f}"
-
-
 def _one(case, wb, bg, tally):
     FIRED.clear()
     _rules(True)
-    on = _outcome(case, wb, bg)
+    on = outcome(case, wb, bg)
     fired = sorted(set(FIRED))
     off = on
     if fired:
         _rules(False)
-        off = _outcome(case, wb, bg)
+        off = outcome(case, wb, bg)
     _rules(True)
     for key, o in (("off", off), ("on", on)):
         if wb:
@@ -125,7 +112,7 @@ def _one(case, wb, bg, tally):
             tally[key][2] += o["found"]
             tally[key][3].append((o["score"], False)) if o["found"] else None
     if (off["found"], off["right"], off["err"]) != (on["found"], on["right"], on["err"]):
-        print(f"{case.label}{'' if wb else ' (ball-free)'}{' bg' if bg else ''} [{','.join(fired)}]: {_text(off)} -> {_text(on)}", flush=True)
+        print(f"{case.label}{'' if wb else ' (ball-free)'}{' bg' if bg else ''} [{','.join(fired)}]: {outcome_text(off)} -> {outcome_text(on)}", flush=True)
 
 
 def _rms(errs) -> float:
