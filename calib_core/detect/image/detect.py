@@ -262,17 +262,34 @@ def _without_mirror_copies(look, good):
     top = [f for _, f in good[:3] if f.fit is not None and _evidence(f) >= 0.5 * _evidence(good[0][1])]
     if len(top) < 2:
         return good, []
-    noise = noise_sigma_dn(look.img)
     copies: list[_Copy] = []
     for far in sorted(top, key=lambda f: -f.range_m):
         for near in sorted(top, key=lambda f: f.range_m):
-            if near.range_m >= far.range_m or any(near is k.copy for k in copies):
-                continue
-            ev = mirror_compare(look.img, _mirror_input(near, look.radius_m), _mirror_input(far, look.radius_m), noise)
-            if ev.is_pair():
-                copies.append(_Copy(far, near, ev))
+            k = None if any(near is k.copy for k in copies) else _mirror_copy_of(look, far, near)
+            if k is not None:
+                copies.append(k)
                 break
     return [(c, f) for c, f in good if not any(f is k.copy for k in copies)], copies
+
+
+def _same_object(f: CandidateFit, g: CandidateFit) -> bool:
+    """``f`` is ``g`` or another fit of the same outline (centre within half its radius)."""
+    if f is g:
+        return True
+    if f.centre_uv_px is None or g.silhouette_px is None:
+        return False
+    return bool(np.hypot(*(f.centre_uv_px - g.centre_uv_px)) < 0.5 * _mean_radius(g.silhouette_px))
+
+
+def _mirror_copy_of(look, far: CandidateFit, near: CandidateFit) -> _Copy | None:
+    """``far`` as the mirror copy of ``near`` (:mod:`.mirror`), or None."""
+    if far.fit is None or near.fit is None or far.range_m is None or near.range_m >= far.range_m:
+        return None
+    if look.noise_dn is None:
+        look.noise_dn = noise_sigma_dn(look.img)
+    ev = mirror_compare(look.img, _mirror_input(near, look.radius_m), _mirror_input(far, look.radius_m),
+                        look.noise_dn)
+    return _Copy(far, near, ev) if ev.is_pair() else None
 
 
 def _name_copies(det: ImageDetection, copies) -> None:
@@ -507,6 +524,7 @@ class _Look:
         self.background = background
         self.bg = background.image if background is not None else None
         self.max_candidates = max_candidates or (6 if background is not None else 10)
+        self.noise_dn = None  # the image noise (grey levels), measured when a mirror pair is compared
 
     def first_candidates(self, hint_uv_px) -> list[Candidate]:
         """Background-difference blobs, else round-outline votes, else region contrast."""
@@ -618,10 +636,15 @@ def _verdict(look, fits, cands, method, hinted: bool) -> ImageDetection:
     copies: list = []
     if not hinted:  # a mirror copy (glass wall, water surface) is no second object: the ball is the nearer
         good, copies = _without_mirror_copies(look, good)
-        fits = [(c, f) for c, f in fits if not any(f is k.copy for k in copies)]
+        fits = [(c, f) for c, f in fits if not any(_same_object(f, k.copy) for k in copies)]
     # a clean round outline refused only for being cut by the border (or partly hidden) that
     # outweighs the best accepted one: the accepted one is likely clutter, the sphere is there
     blocker = _stronger_refused(fits, good[0][1])
+    cut_copy = None if blocker is None or hinted else _mirror_copy_of(look, blocker, good[0][1])
+    if cut_copy is not None:  # the stronger refused outline is the ball's copy (cut by the border)
+        copies.append(cut_copy)
+        fits = [(c, f) for c, f in fits if not _same_object(f, blocker)]
+        blocker = _stronger_refused(fits, good[0][1])
     if blocker is not None and not hinted:
         if _clean_whole(good[0][1]):
             # a clean, credible whole outline beside a stronger cut (or partly hidden) one: two

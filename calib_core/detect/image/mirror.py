@@ -42,6 +42,7 @@ MIN_COLOUR_COS = 0.985  # cosine of the mean colours' angle (about 10 deg)
 RANGE_SIGMAS = 3.0  # the copy's range exceeds the ball's by this many sigmas of the difference
 DISC_FRACTION = 0.85  # the disc sampled (of the apparent radius): inside the outline's blur
 GRID = 21  # samples per disc diameter
+MIN_SEEN = 0.5  # share of the disc samples in the image (both discs) needed to compare
 
 
 @dataclass(frozen=True)
@@ -63,6 +64,10 @@ def _unit_disc(n: int = GRID) -> np.ndarray:
     t = np.linspace(-1.0, 1.0, n)
     q = np.stack(np.meshgrid(t, t), axis=-1).reshape(-1, 2)
     return q[np.hypot(q[:, 0], q[:, 1]) <= 1.0]
+
+
+def _in_image(p: np.ndarray, W: int, H: int) -> np.ndarray:
+    return (p[:, 0] >= 0) & (p[:, 0] <= W - 1) & (p[:, 1] >= 0) & (p[:, 1] <= H - 1)
 
 
 def _blur_sigma(radius: float) -> float:
@@ -110,6 +115,14 @@ def compare(img: np.ndarray, near: dict, far: dict, noise_dn: float) -> MirrorEv
     e = axis / max(float(np.linalg.norm(axis)), 1e-9)
     q = _unit_disc()
     flipped = q - 2.0 * (q @ e)[:, None] * e[None, :]
+    # only where both discs are in the image (a copy cut by the border is compared on its part)
+    H, W = img.shape[:2]
+    seen = (_in_image(c_a + DISC_FRACTION * near["radius_px"] * q, W, H)
+            & _in_image(c_b + DISC_FRACTION * far["radius_px"] * flipped, W, H)
+            & _in_image(c_b + DISC_FRACTION * far["radius_px"] * q, W, H))
+    if seen.mean() < MIN_SEEN:
+        return MirrorEvidence(0.0, 0.0, 0.0, np.inf, 0.0)
+    q, flipped = q[seen], flipped[seen]
     a = _sample(img, c_a, near["radius_px"], q)
     b_flip = _sample(img, c_b, far["radius_px"], flipped)
     b_direct = _sample(img, c_b, far["radius_px"], q)
