@@ -272,6 +272,20 @@ def _without_mirror_copies(look, good):
     return [(c, f) for c, f in good if not any(f is k.copy for k in copies)], copies
 
 
+def _set_aside_copies(look, good, fits):
+    """(accepted outlines, all fits, copies) without the outlines that are a mirror copy of a
+    nearer accepted one, nor a copy cut by the border that would block the ball
+    (:func:`_stronger_refused`); the copies' other fits go too (they are no rivals)."""
+    good, copies = _without_mirror_copies(look, good)
+    fits = [(c, f) for c, f in fits if not any(_same_object(f, k.copy) for k in copies)]
+    blocker = _stronger_refused(fits, good[0][1])
+    cut_copy = None if blocker is None else _mirror_copy_of(look, blocker, good[0][1])
+    if cut_copy is not None:
+        copies.append(cut_copy)
+        fits = [(c, f) for c, f in fits if not _same_object(f, blocker)]
+    return good, fits, copies
+
+
 def _same_object(f: CandidateFit, g: CandidateFit) -> bool:
     """``f`` is ``g`` or another fit of the same outline (centre within half its radius)."""
     if f is g:
@@ -304,7 +318,9 @@ def _name_copies(det: ImageDetection, copies) -> None:
     det.extras["mirror_copy_uv_px"] = [round(float(u), 2), round(float(v), 2)]
     ev = k.evidence
     det.extras["mirror_evidence"] = {"flip_corr": round(ev.flip_corr, 3), "direct_corr": round(ev.direct_corr, 3),
-                                     "colour_cos": round(ev.colour_cos, 4), "brightness_ratio": round(ev.brightness_ratio, 3), "range_sigmas": round(ev.range_sigmas, 1)}
+                                     "colour_cos": round(ev.colour_cos, 4),
+                                     "brightness_ratio": round(ev.brightness_ratio, 3),
+                                     "range_sigmas": round(ev.range_sigmas, 1)}
 
 
 # a clean, confident outline whose round-outline vote is this many times another candidate's
@@ -633,18 +649,11 @@ def _verdict(look, fits, cands, method, hinted: bool) -> ImageDetection:
     good = _good_fits(fits)
     if not good:
         return _refusal(fits, cands, method)
-    copies: list = []
-    if not hinted:  # a mirror copy (glass wall, water surface) is no second object: the ball is the nearer
-        good, copies = _without_mirror_copies(look, good)
-        fits = [(c, f) for c, f in fits if not any(_same_object(f, k.copy) for k in copies)]
+    # a mirror copy (glass wall, water surface) is no second object: the ball is the nearer
+    good, fits, copies = (good, fits, []) if hinted else _set_aside_copies(look, good, fits)
     # a clean round outline refused only for being cut by the border (or partly hidden) that
     # outweighs the best accepted one: the accepted one is likely clutter, the sphere is there
     blocker = _stronger_refused(fits, good[0][1])
-    cut_copy = None if blocker is None or hinted else _mirror_copy_of(look, blocker, good[0][1])
-    if cut_copy is not None:  # the stronger refused outline is the ball's copy (cut by the border)
-        copies.append(cut_copy)
-        fits = [(c, f) for c, f in fits if not _same_object(f, blocker)]
-        blocker = _stronger_refused(fits, good[0][1])
     if blocker is not None and not hinted:
         if _clean_whole(good[0][1]):
             # a clean, credible whole outline beside a stronger cut (or partly hidden) one: two
