@@ -82,7 +82,8 @@ def main(argv=None) -> int:
     for kind in a.kinds.split(","):
         _run_kind(kind, range(a.first, a.first + a.seeds), a.scale, spy, rows, lines)
     print("\n".join(lines))
-    print(f"\nImages where a mirror copy was set aside (seeds {a.first}-{a.first + a.seeds - 1}, with and without the ball)")
+    print(f"\nImages where a mirror copy was set aside (seeds {a.first}-{a.first + a.seeds - 1}, "
+          "with and without the ball)")
     print("| kind | images | copy set aside | ball found right | found wrong | ball-free find | still refused |")
     print("|---|---|---|---|---|---|---|")
     print("\n".join(rows))
