@@ -11,22 +11,26 @@ The ball's own texture flips that way. Shading that depends on the view and the 
 highlight, sun caustics seen from above) may keep its side instead (measured on the tank kind: a
 glass-pane copy with caustics on top correlated 0.91 unflipped and 0.08 flipped); but two real
 balls side by side under one light look alike unflipped too, so only the flip is evidence of a
-mirror: a pair alike only unflipped stays "two round objects" (the session's sonar chooses).
+mirror. And a flip explains nothing when the disc looks the same flipped (shading symmetric about
+the line, e.g. lit from above with the pair side by side): two like boulders on a seabed
+correlated 0.83 flipped and 0.80 unflipped (underwater kind). So the flip must explain the pair
+better than no flip, by FLIP_MARGIN; a pair alike both ways, or only unflipped, stays "two round
+objects" (the session's sonar chooses).
 
 So two round outlines are a mirror pair when (all measured, none tuned to a scene):
 
 - the copy's disc, sampled flipped across that line and rescaled to the ball's
   size, correlates with the ball's disc: correlation at least MIN_CORR of what the image noise
   allows (the correlation of two noisy copies of one picture is below 1 by the noise's share of
-  the variance; a flat disc, noise only, gives no evidence);
+  the variance; a flat disc, noise only, gives no evidence), and by FLIP_MARGIN more than
+  unflipped;
 - the two mean colours point the same way (the reflection scales the colour; a different ball
   has another colour) and the copy is no brighter than the ball (beyond BRIGHTER_FRACTION: the
   longer path's veil adds a little light to a dark ball's copy);
 - the copy's cone range exceeds the ball's by more than RANGE_SIGMAS of their uncertainty.
 
-Then the nearer one is the ball. Twin balls (same colour and size) with shading symmetric about
-that line pass the appearance test; the range then names the nearer one the ball: one image
-cannot tell them apart (a known limit).
+Then the nearer one is the ball. A copy whose disc is symmetric about that line (a plain ball lit
+from above beside a glass wall) is not recognised: one image cannot tell it from a twin ball.
 """
 
 from __future__ import annotations
@@ -37,6 +41,7 @@ import cv2
 import numpy as np
 
 MIN_CORR = 0.8  # correlation of the rescaled discs, over what the noise allows
+FLIP_MARGIN = 0.1  # the flip must explain the pair this much better than no flip
 BRIGHTER_FRACTION = 0.1  # the copy's mean grey may exceed the ball's by this share
 MIN_COLOUR_COS = 0.985  # cosine of the mean colours' angle (about 10 deg)
 RANGE_SIGMAS = 3.0  # the copy's range exceeds the ball's by this many sigmas of the difference
@@ -56,8 +61,8 @@ class MirrorEvidence:
     range_sigmas: float  # copy's range minus the ball's, in sigmas of the difference
 
     def is_pair(self) -> bool:
-        return bool(self.flip_corr >= MIN_CORR and self.colour_cos >= MIN_COLOUR_COS
-                    and self.brightness_ratio <= 1.0 + BRIGHTER_FRACTION and self.range_sigmas >= RANGE_SIGMAS)
+        return bool(self.flip_corr >= MIN_CORR and self.flip_corr >= self.direct_corr + FLIP_MARGIN
+                    and self.colour_cos >= MIN_COLOUR_COS and self.brightness_ratio <= 1.0 + BRIGHTER_FRACTION and self.range_sigmas >= RANGE_SIGMAS)
 
 
 def _unit_disc(n: int = GRID) -> np.ndarray:
@@ -138,10 +143,11 @@ def compare(img: np.ndarray, near: dict, far: dict, noise_dn: float) -> MirrorEv
 
 
 def noise_sigma_dn(img: np.ndarray) -> float:
-    """Robust per-channel image noise (grey levels): Immerkaer's estimator (mean absolute
-    Laplacian-like residual) on a half-resolution subsample of each colour channel, averaged;
-    enough to scale a correlation."""
+    """Robust per-channel image noise (grey levels): the median absolute response of Immerkaer's
+    Laplacian-difference kernel (6 sigma for white noise) on a half-resolution subsample of each
+    colour channel; the median ignores the edges of tiles and texture, which a mean counts as
+    noise."""
     sub = np.ascontiguousarray(np.asarray(img)[::2, ::2]).astype(np.float32)
     k = np.array([[1, -2, 1], [-2, 4, -2], [1, -2, 1]], np.float32)
     r = cv2.filter2D(sub, -1, k)[1:-1, 1:-1]
-    return float(np.sqrt(np.pi / 2) * np.mean(np.abs(r)) / 6.0)
+    return float(np.median(np.abs(r)) / (0.6745 * 6.0))
