@@ -90,11 +90,11 @@ def solve_rig(solutions: dict[str, CameraSolution], links: dict[str, Link], refe
     warnings: list[str] = []
     prob_s = RigProblem(cams, masks, {n: links[n] for n in names[1:]}, estimate_scale=True)
     # the stereo block judged by the data (calib_core.solve.stereo_factor): widened when worse than stated
-    factor, s_info = stereo_factor(prob_s, res.state, robust)
+    factor, s_info, prob_s, res_s = stereo_factor(prob_s, res.state, robust)
     if factor > 1.0:
-        prob, prob_s = widened(prob, factor), widened(prob_s, factor)
+        prob = widened(prob, factor)
         res = refine(prob, res.state, robust=robust)
-    ch = choose_scale(prob, res, prob_s, scale_mode(estimate_scale), robust)
+    ch = choose_scale(prob, res, prob_s, scale_mode(estimate_scale), robust, res_free=res_s)
     res, prob = ch.res, ch.problem
     note = ch.note
     vf = res.variance_factor if res.dof > 0 else 1.0

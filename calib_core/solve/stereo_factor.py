@@ -59,27 +59,27 @@ def widened(problem: RigProblem, factor: float, estimate_scale: bool | None = No
     return RigProblem(problem.cams, problem.masks, links, estimate_scale=es, use_ranges=len(problem.range_rows) > 0)
 
 
-def stereo_factor(prob_free: RigProblem, state, robust: str | None = None) -> tuple[float, dict]:
-    """The stereo block's variance factor (>= 1) with the scale free, and what to report.
+def stereo_factor(prob_free: RigProblem, state, robust: str | None = None):
+    """(factor >= 1, what to report, the scale-free problem widened by it, its fit).
 
-    ``prob_free``: the joint problem with the scale free; ``state``: a starting state."""
+    ``prob_free``: the joint problem with the scale free; ``state``: a starting state. The fit
+    returned is that of the problem returned (the scale test reuses it); None without a free link."""
     total, info = 1.0, {"factor": 1.0, "chi2": 0.0, "redundancy": 0.0}
-    if not prob_free.free_links:
-        return total, info
+    if not prob_free.free_links:  # nothing to judge (the scale test fits the free model itself)
+        return total, info, prob_free, None
     prob, res = prob_free, refine(prob_free, state, robust=robust)
-    for _ in range(MAX_ITER):
+    for it in range(MAX_ITER):
         f, chi2, red = block_factor(prob, res, robust)
-        if total == 1.0:
+        if it == 0:
             info.update(chi2=chi2, redundancy=red)  # as first seen, with the stereo as stated
         new = max(1.0, total * f)
         if abs(new - total) <= TOL * total:
-            total = new
             break
         total = new
         prob = widened(prob_free, total)
         res = refine(prob, res.state, robust=robust)
     info["factor"] = total
-    return total, info
+    return total, info, prob, res
 
 
 def stereo_factor_phrase(info: dict, assumed: bool) -> str:
