@@ -94,7 +94,11 @@ def solve_rig(solutions: dict[str, CameraSolution], links: dict[str, Link], refe
     if factor > 1.0:
         prob = widened(prob, factor)
         res = refine(prob, res.state, robust=robust)
-    ch = choose_scale(prob, res, prob_s, scale_mode(estimate_scale), robust, res_free=res_s)
+    # the scale's share of the model errors common to all captures (systematic.py: a sonar range
+    # offset, a shading offset of the image centres) is not evidence of a scale error: the test
+    # counts only the deviation beyond it, as the reported sigma includes it
+    sys_var = float(systematic_term(prob_s, res_s.state, robust)[-1, -1])
+    ch = choose_scale(prob, res, prob_s, scale_mode(estimate_scale), robust, sys_var, res_free=res_s)
     res, prob = ch.res, ch.problem
     note = ch.note
     vf = res.variance_factor if res.dof > 0 else 1.0

@@ -63,11 +63,11 @@ def stereo_factor(prob_free: RigProblem, state, robust: str | None = None):
     """(factor >= 1, what to report, the scale-free problem widened by it, its fit).
 
     ``prob_free``: the joint problem with the scale free; ``state``: a starting state. The fit
-    returned is that of the problem returned (the scale test reuses it); None without a free link."""
+    returned is that of the problem returned (the scale test reuses it)."""
     total, info = 1.0, {"factor": 1.0, "chi2": 0.0, "redundancy": 0.0}
-    if not prob_free.free_links:  # nothing to judge (the scale test fits the free model itself)
-        return total, info, prob_free, None
     prob, res = prob_free, refine(prob_free, state, robust=robust)
+    if not prob_free.free_links:  # nothing to judge (stereo transforms held exactly)
+        return total, info, prob, res
     for it in range(MAX_ITER):
         f, chi2, red = block_factor(prob, res, robust)
         if it == 0:
