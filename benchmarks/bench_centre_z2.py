@@ -37,6 +37,7 @@ def samples(cache: Path, name: str = "scale3_detections.pkl", carried: str = "ol
     for root in sorted(p for p in cache.iterdir() if (p / name).is_file()):
         gt = load_ground_truth(root)
         dets = pickle.loads((root / name).read_bytes())
+        dets = dets.get("detections", dets) if "detections" in dets else dets
         for cid, per_cam in dets.items():
             for cam, e in per_cam.items():
                 t = ((gt["captures"].get(cid) or {}).get("images") or {}).get(cam) or {}

@@ -23,7 +23,7 @@ import numpy as np
 
 from calib_core.geometry import invert_T, pose_error, rotvec_from_T
 import calib_core.solve.rig as rig_module
-from calib_core.detect.image.fit import EDGE_WIDTH_FRACTION
+from calib_core.detect.image import fit as image_fit
 from calib_core.pipeline import SessionData, detect_session
 from calib_core.session import load_session
 from calib_core.solve.calibrate import calibrate_session
@@ -56,16 +56,17 @@ def detection_counts(gt: dict, dets: dict, cam: str, used: set, tol_px: float = 
     return f"{found}/{visible}", false_used
 
 
-def without_limb_floor(dets: dict) -> dict:
+def without_limb_floor(dets: dict, fraction: float) -> dict:
     """The detections with the image centres' covariance as stated before the twenty-fourth round
-    (without the lopsided limb's floor, calib_core.detect.image.fit.EDGE_WIDTH_FRACTION x width)."""
+    (without the lopsided limb's floor, ``fraction`` x width: calib_core.detect.image.fit.EDGE_WIDTH_FRACTION
+    when they were detected)."""
     out = copy.deepcopy(dets)
     for per_cam in out.values():
         for e in per_cam.values():
             w = e.get("edge_width_px")
             if e.get("cov_px2") is None or w is None or not np.isfinite(w) or w <= 0 or "center" not in e:
                 continue
-            C = np.asarray(e["cov_px2"], float).reshape(2, 2) - (EDGE_WIDTH_FRACTION * w) ** 2 * np.eye(2)
+            C = np.asarray(e["cov_px2"], float).reshape(2, 2) - (fraction * w) ** 2 * np.eye(2)
             e["cov_px2"] = C.ravel().tolist()
     return out
 
@@ -82,14 +83,16 @@ def run_one(folder: Path, preset: str, seed: int, scale: float, cached: bool = F
     t0 = time.perf_counter()
     pk = root / "e2e_detections.pkl"
     if keep and pk.is_file():
-        dets = pickle.loads(pk.read_bytes())
+        kept = pickle.loads(pk.read_bytes())
     else:
-        dets = detect_session(SessionData(session), {})
+        kept = {"detections": detect_session(SessionData(session), {}),
+                "limb_fraction": getattr(image_fit, "EDGE_WIDTH_FRACTION", 0.0)}
         if keep:
-            pk.write_bytes(pickle.dumps(dets))
+            pk.write_bytes(pickle.dumps(kept))
+    dets = kept["detections"]
     t_det = time.perf_counter() - t0
     if before:
-        dets = without_limb_floor(dets)
+        dets = without_limb_floor(dets, kept["limb_fraction"])
     targets = {c for c, v in gt["captures"].items() if v.get("target", True)}
     missed = sum(1 for c, d in dets.items() if c in targets for e in d.values() if e.get("center") is None)
     moved = sorted(c for c, v in gt["captures"].items() if (v.get("moved_m") or 0) > 0.01)
@@ -129,8 +132,9 @@ def main() -> None:
     ap.add_argument("--cache", help="keep generated sessions in this folder and reuse them (as bench_image_sessions.py)")
     ap.add_argument("--keep-detections", action="store_true", help="keep detections in --cache and reuse them")
     ap.add_argument("--before", action="store_true",
-                    help="solve as before the twenty-fourth round: image centres without the limb floor, the "
-                         "stereo covariance as stated (no variance factor of its own)")
+                    help="detections as before the twenty-fourth round (image centres without the limb floor) and "
+                         "no stereo variance factor; run it with PYTHONPATH at the code before the round for its "
+                         "solver (the cached detections made by the current code)")
     args = ap.parse_args()
     if args.before:
         rig_module.stereo_factor = lambda p, st, r=None: (1.0, {"factor": 1.0}, p, None)
