@@ -23,7 +23,8 @@ from pathlib import Path
 
 import numpy as np
 
-from calib_core.geometry import invert_T, pose_error
+from calib_core.errors import SessionError
+from calib_core.geometry import pose_error
 from calib_core.pipeline import SessionData, detect_session
 from calib_core.session import load_session
 from calib_core.solve.calibrate import calibrate_session
@@ -95,7 +96,11 @@ def main() -> None:
             for preset in args.presets:
                 session, gt, dets = session_and_detections(folder, preset, seed, args.scale)
                 true = float(gt.get("range_scale", 1.0))
-                row = run_one(session, gt, dets, args.stereo)
+                try:
+                    row = run_one(session, gt, dets, args.stereo)
+                except SessionError as e:  # report, do not stop the sweep
+                    print(f"{preset} | {seed} | {true:g} | FAILED: {e.problem[:100]}", flush=True)
+                    continue
                 if abs(true - 1.0) < 1e-9:
                     n += 1
                     n_est += row[0] == "yes"

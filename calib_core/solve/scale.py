@@ -159,9 +159,7 @@ def stereo_limit_note(sigma: float | None, sigma_detections: float | None, assum
 
 
 def lr_test(res_fixed: RefineResult, res_free: RefineResult, systematic_var: float = 0.0) -> dict:
-    """F test of s = 1 against s free (see the module doc). The noise level is the data's, but not
-    below the stated one (as every reported covariance is scaled by max(1, variance factor)): a
-    fit that happens to be tighter than stated does not make a small deviation significant.
+    """F test of s = 1 against s free (see the module doc).
 
     ``systematic_var``: variance of the scale from a systematic the fit cannot see (the sphere
     diameter's tolerance, one camera): the statistic is deflated by
@@ -170,7 +168,7 @@ def lr_test(res_fixed: RefineResult, res_free: RefineResult, systematic_var: flo
 
     d = max(res_fixed.chi2 - res_free.chi2, 0.0)
     v = res_free.chi2 / res_free.dof if res_free.dof > 0 else math.nan
-    F = d / max(v, 1.0) if math.isfinite(v) else math.inf
+    F = d / v if v > 0 else math.inf
     if systematic_var > 0 and math.isfinite(F):
         stat = v * max(res_free.cov[-1, -1], 0.0)
         F *= stat / (stat + systematic_var)
