@@ -31,6 +31,7 @@ import numpy as np
 from calib_core.camera import CameraModel
 from calib_core.detect.image.blur import blur_range_floor_m, clean_rms_px
 from calib_core.detect.image.fit import TIGHT_MIN_SUPPORT, TIGHT_RMS_FRACTION, CandidateFit, refine_candidate
+from calib_core.detect.image.closing import closed_candidates, view_of
 from calib_core.detect.image.discs import candidates_by_discs
 from calib_core.detect.image.highlight import host_candidates, is_clipped_spot
 from calib_core.detect.image.hough import hough_circle
@@ -299,6 +300,7 @@ def _hint_candidates(cands, hint_uv, hint_r, r_bounds):
 # hidden: clutter makes those (chair legs, tiles); the second cue then looks as well
 WEAK_FIT = 0.5
 DISC_CANDIDATES = 6  # colour-distance disc candidates refined when the other cues found nothing
+CLOSED_CANDIDATES = 3  # per view (closed, opened) in the see-through cue
 VOTE_CANDIDATES = 8  # round-outline vote peaks refined (clutter outranks a faint large outline often)
 FAINT_CONTRAST = 10.0  # grey levels: a background-difference outline this faint gets a second look
 
@@ -408,7 +410,22 @@ def _more_cues(look, cands, fits):
     fits = fits + _refine_all(look, more[:DISC_CANDIDATES], False)  # best first, border or not
     if _clear(fits) and not _clear_in_print(look, cands, fits):
         return cands, fits
-    return _print_cue(look, cands, fits)
+    cands, fits = _print_cue(look, cands, fits)
+    return (cands, fits) if _clear(fits) else _closed_cue(look, cands, fits)
+
+
+def _closed_cue(look, cands, fits):
+    """Fifth cue, when nothing else gave a clear outline: a see-through ball (lattice, cage,
+    net, wiffle) looked for on the image closed at its mesh cell's scale (:mod:`.closing`).
+    It counts only when it gives a clear outline; each candidate draws from its own random
+    stream (the shared one is left as it was: what draws after it draws as without the cue)."""
+    more = [c for c in closed_candidates(look.small, look.s, look.r_bounds, CLOSED_CANDIDATES)
+            if not c.touches_border]
+    fifth = [(c, refine_candidate(view_of(look.img, c), look.cam, c, look.radius_m, look.a_range,
+                                  None, np.random.default_rng(0))) for c in more]
+    if _clear(fifth):
+        return cands + more, fits + fifth
+    return cands, fits
 
 
 def _clear_in_print(look, cands, fits) -> bool:
