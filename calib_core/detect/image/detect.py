@@ -419,10 +419,8 @@ def _closed_cue(look, cands, fits):
     net, wiffle) looked for on the image closed at its mesh cell's scale (:mod:`.closing`).
     It counts only when it gives a clear outline; each candidate draws from its own random
     stream (the shared one is left as it was: what draws after it draws as without the cue)."""
-    more = [c for c in closed_candidates(look.small, look.s, look.r_bounds, CLOSED_CANDIDATES)
-            if not c.touches_border]
-    fifth = [(c, refine_candidate(view_of(look.img, c), look.cam, c, look.radius_m, look.a_range,
-                                  None, np.random.default_rng(0))) for c in more]
+    more = [c for c in look.closed_candidates() if not c.touches_border]
+    fifth = [(c, look.refine_closed(c)) for c in more]
     if _clear(fifth):
         return cands + more, fits + fifth
     return cands, fits
@@ -496,6 +494,14 @@ class _Look:
 
     def refine(self, c: Candidate) -> CandidateFit:
         return refine_candidate(self.img, self.cam, c, self.radius_m, self.a_range, self.bg, self.rng)
+
+    def closed_candidates(self) -> list[Candidate]:
+        return closed_candidates(self.small, self.s, self.r_bounds, CLOSED_CANDIDATES)
+
+    def refine_closed(self, c: Candidate) -> CandidateFit:
+        """A see-through cue's candidate refined on its closed view, from its own random stream."""
+        return refine_candidate(view_of(self.img, c), self.cam, c, self.radius_m, self.a_range, None,
+                                np.random.default_rng(0))
 
 
 def _host_of_highlight(look, det: ImageDetection, method: str) -> ImageDetection:
