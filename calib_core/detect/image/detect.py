@@ -419,11 +419,21 @@ def _closed_cue(look, cands, fits):
     net, wiffle) looked for on the image closed at its mesh cell's scale (:mod:`.closing`).
     It counts only when it gives a clear outline; each candidate draws from its own random
     stream (the shared one is left as it was: what draws after it draws as without the cue)."""
-    more = [c for c in look.closed_candidates() if not c.touches_border]
+    # (not where the image itself gave an accepted, if weak, outline: closing makes any dark or
+    # bright blob rounder, and there it would only outbid the raw outline; a half-buried boulder
+    # at 0.73 went to 1.00)
+    accepted = [f for _, f in fits if f.ok]
+    more = [c for c in look.closed_candidates() if not c.touches_border and not _near_accepted(c, accepted)]
     fifth = [(c, look.refine_closed(c)) for c in more]
     if _clear(fifth):
         return cands + more, fits + fifth
     return cands, fits
+
+
+def _near_accepted(c: Candidate, accepted) -> bool:
+    """A candidate at an accepted outline, of about its size."""
+    return any(np.hypot(*(c.centre_px - f.centre_uv_px)) < 0.5 * _mean_radius(f.silhouette_px)
+               and 0.6 < c.radius_px / _mean_radius(f.silhouette_px) < 1.6 for f in accepted)
 
 
 def _clear_in_print(look, cands, fits) -> bool:
