@@ -301,6 +301,7 @@ def _hint_candidates(cands, hint_uv, hint_r, r_bounds):
 WEAK_FIT = 0.5
 DISC_CANDIDATES = 6  # colour-distance disc candidates refined when the other cues found nothing
 CLOSED_CANDIDATES = 3  # per view (closed, opened) in the see-through cue
+CLOSED_MIN_FIT = 0.7  # the fit score (outline share x roundness) a see-through cue's outline needs
 VOTE_CANDIDATES = 8  # round-outline vote peaks refined (clutter outranks a faint large outline often)
 FAINT_CONTRAST = 10.0  # grey levels: a background-difference outline this faint gets a second look
 
@@ -425,7 +426,9 @@ def _closed_cue(look, cands, fits):
     accepted = [f for _, f in fits if f.ok]
     more = [c for c in look.closed_candidates() if not c.touches_border and not _near_accepted(c, accepted)]
     fifth = [(c, look.refine_closed(c)) for c in more]
-    if _clear(fifth):
+    # (a guess on a transformed image: it counts only when one of its outlines is clearer than
+    # the weak fit that would do on the raw image; a blob of a dim wall, closed, made one at 0.50)
+    if any(f.ok and f.score >= CLOSED_MIN_FIT for _, f in fifth):
         return cands + more, fits + fifth
     return cands, fits
 
