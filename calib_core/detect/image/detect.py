@@ -29,8 +29,9 @@ import cv2
 import numpy as np
 
 from calib_core.camera import CameraModel
-from calib_core.detect.image.blur import blur_range_floor_m, clean_rms_px
-from calib_core.detect.image.fit import TIGHT_MIN_SUPPORT, TIGHT_RMS_FRACTION, CandidateFit, refine_candidate
+from calib_core.detect.image.blur import SMALL_RADIUS_PX, blur_range_floor_m, clean_rms_px
+from calib_core.detect.image.fit import (MIN_EDGE_WIDTH_PX, TIGHT_MIN_SUPPORT, TIGHT_RMS_FRACTION, CandidateFit,
+                                        refine_candidate)
 from calib_core.detect.image.closing import closed_candidates, view_of
 from calib_core.detect.image.discs import candidates_by_discs
 from calib_core.detect.image.highlight import host_candidates, is_clipped_spot
@@ -426,11 +427,19 @@ def _closed_cue(look, cands, fits):
     accepted = [f for _, f in fits if f.ok]
     more = [c for c in look.closed_candidates() if not c.touches_border and not _near_accepted(c, accepted)]
     fifth = [(c, look.refine_closed(c)) for c in more]
-    # (a guess on a transformed image: it counts only when one of its outlines is clearer than
-    # the weak fit that would do on the raw image; a blob of a dim wall, closed, made one at 0.50)
-    if any(f.ok and f.score >= CLOSED_MIN_FIT for _, f in fifth):
+    if any(_closed_clear(f) for _, f in fifth):
         return cands + more, fits + fifth
     return cands, fits
+
+
+def _closed_clear(f: CandidateFit) -> bool:
+    """A see-through cue's outline that counts: a guess on a transformed image, so clearer than
+    the weak fit that would do on the raw image (CLOSED_MIN_FIT; a blob of a dim wall, closed,
+    made one at 0.50), no smaller than the smallest sphere the detector is meant for
+    (SMALL_RADIUS_PX: a mesh needs a few cells to be seen as one) and on edges that are steps
+    (MIN_EDGE_WIDTH_PX, as fit._outline_held: a 13 px blob of a chair scene, closed, had 2.0 px)."""
+    return (f.ok and f.score >= CLOSED_MIN_FIT and _mean_radius(f.silhouette_px) >= SMALL_RADIUS_PX
+            and f.extras.get("edge_width_px", 0.0) >= MIN_EDGE_WIDTH_PX)
 
 
 def _near_accepted(c: Candidate, accepted) -> bool:
