@@ -29,8 +29,10 @@ import cv2
 import numpy as np
 
 from calib_core.camera import CameraModel
-from calib_core.detect.image.blur import blur_range_floor_m, clean_rms_px
-from calib_core.detect.image.fit import TIGHT_MIN_SUPPORT, TIGHT_RMS_FRACTION, CandidateFit, refine_candidate
+from calib_core.detect.image.blur import SMALL_RADIUS_PX, blur_range_floor_m, clean_rms_px
+from calib_core.detect.image.fit import (MIN_EDGE_WIDTH_PX, TIGHT_MIN_SUPPORT, TIGHT_RMS_FRACTION, CandidateFit,
+                                        refine_candidate)
+from calib_core.detect.image.closing import closed_candidates, view_of
 from calib_core.detect.image.discs import candidates_by_discs
 from calib_core.detect.image.highlight import host_candidates, is_clipped_spot
 from calib_core.detect.image.hough import hough_circle
@@ -381,6 +383,8 @@ def _hint_candidates(cands, hint_uv, hint_r, r_bounds):
 # hidden: clutter makes those (chair legs, tiles); the second cue then looks as well
 WEAK_FIT = 0.5
 DISC_CANDIDATES = 6  # colour-distance disc candidates refined when the other cues found nothing
+CLOSED_CANDIDATES = 3  # per view (closed, opened) in the see-through cue
+CLOSED_MIN_FIT = 0.7  # the fit score (outline share x roundness) a see-through cue's outline needs
 VOTE_CANDIDATES = 8  # round-outline vote peaks refined (clutter outranks a faint large outline often)
 FAINT_CONTRAST = 10.0  # grey levels: a background-difference outline this faint gets a second look
 
@@ -490,7 +494,40 @@ def _more_cues(look, cands, fits):
     fits = fits + _refine_all(look, more[:DISC_CANDIDATES], False)  # best first, border or not
     if _clear(fits) and not _clear_in_print(look, cands, fits):
         return cands, fits
-    return _print_cue(look, cands, fits)
+    cands, fits = _print_cue(look, cands, fits)
+    return (cands, fits) if _clear(fits) else _closed_cue(look, cands, fits)
+
+
+def _closed_cue(look, cands, fits):
+    """Fifth cue, when nothing else gave a clear outline: a see-through ball (lattice, cage,
+    net, wiffle) looked for on the image closed at its mesh cell's scale (:mod:`.closing`).
+    It counts only when it gives a clear outline; each candidate draws from its own random
+    stream (the shared one is left as it was: what draws after it draws as without the cue)."""
+    # (not where the image itself gave an accepted, if weak, outline: closing makes any dark or
+    # bright blob rounder, and there it would only outbid the raw outline; a half-buried boulder
+    # at 0.73 went to 1.00)
+    accepted = [f for _, f in fits if f.ok]
+    more = [c for c in look.closed_candidates() if not c.touches_border and not _near_accepted(c, accepted)]
+    fifth = [(c, look.refine_closed(c)) for c in more]
+    if any(_closed_clear(f) for _, f in fifth):
+        return cands + more, fits + fifth
+    return cands, fits
+
+
+def _closed_clear(f: CandidateFit) -> bool:
+    """A see-through cue's outline that counts: a guess on a transformed image, so clearer than
+    the weak fit that would do on the raw image (CLOSED_MIN_FIT; a blob of a dim wall, closed,
+    made one at 0.50), no smaller than the smallest sphere the detector is meant for
+    (SMALL_RADIUS_PX: a mesh needs a few cells to be seen as one) and on edges that are steps
+    (MIN_EDGE_WIDTH_PX, as fit._outline_held: a 13 px blob of a chair scene, closed, had 2.0 px)."""
+    return (f.ok and f.score >= CLOSED_MIN_FIT and _mean_radius(f.silhouette_px) >= SMALL_RADIUS_PX
+            and f.extras.get("edge_width_px", 0.0) >= MIN_EDGE_WIDTH_PX)
+
+
+def _near_accepted(c: Candidate, accepted) -> bool:
+    """A candidate at an accepted outline, of about its size."""
+    return any(np.hypot(*(c.centre_px - f.centre_uv_px)) < 0.5 * _mean_radius(f.silhouette_px)
+               and 0.6 < c.radius_px / _mean_radius(f.silhouette_px) < 1.6 for f in accepted)
 
 
 def _clear_in_print(look, cands, fits) -> bool:
@@ -562,6 +599,14 @@ class _Look:
 
     def refine(self, c: Candidate) -> CandidateFit:
         return refine_candidate(self.img, self.cam, c, self.radius_m, self.a_range, self.bg, self.rng)
+
+    def closed_candidates(self) -> list[Candidate]:
+        return closed_candidates(self.small, self.s, self.r_bounds, CLOSED_CANDIDATES)
+
+    def refine_closed(self, c: Candidate) -> CandidateFit:
+        """A see-through cue's candidate refined on its closed view, from its own random stream."""
+        return refine_candidate(view_of(self.img, c), self.cam, c, self.radius_m, self.a_range, None,
+                                np.random.default_rng(0))
 
 
 def _host_of_highlight(look, det: ImageDetection, method: str) -> ImageDetection:
