@@ -166,3 +166,66 @@ def _crossing(g, rows, j_below, j_above, half, M) -> np.ndarray:
     frac = np.clip((ga - half) / np.maximum(ga - gb, 1e-12), 0.0, 1.0)
     x = ja + frac * (jb - ja)
     return np.where(inside, x, np.where(j_below < 0, 0.0, M - 1.0))
+
+
+# the straight lines either side of an edge are fitted this far beyond its blur (x its sigma) ...
+SIDE_GAP_SIGMAS = 2.5
+# ... over windows this long (x its sigma, at least SIDE_MIN_WINDOW_PX)
+SIDE_WINDOW_SIGMAS = 3.0
+SIDE_MIN_WINDOW_PX = 4.0
+
+
+def side_lines(signal: np.ndarray, origin_px: tuple[float, float], points_px: np.ndarray,
+               normals: np.ndarray, sigma_px: float) -> dict:
+    """Straight lines fitted to the signal either side of edges, beyond their blur.
+
+    The profile along each normal (outward) is projected onto the colour direction of the
+    step (inside minus outside mean), so it falls outward; a line is fitted to it over
+    [-gap - window, -gap] and another over [gap, gap + window] (gap SIDE_GAP_SIGMAS x
+    ``sigma_px``, window SIDE_WINDOW_SIGMAS x it, at least SIDE_MIN_WINDOW_PX).
+
+    Returns (each (K,)): ``level_in`` and ``level_out`` (each line at the edge, t = 0),
+    ``slope_in`` and ``slope_out`` (per px, outward), ``mean_in`` and ``mean_out`` (each
+    window's mean)."""
+    s = max(float(sigma_px), 0.5)
+    gap, win = SIDE_GAP_SIGMAS * s, max(SIDE_MIN_WINDOW_PX, SIDE_WINDOW_SIGMAS * s)
+    tau = np.arange(0.0, win + 0.25, 0.5) + gap
+    t = np.r_[-tau[::-1], tau]
+    prof = sample_profiles(signal, origin_px, points_px, normals, t)  # (K, M, c)
+    n = len(tau)
+    d = prof[:, :n].mean(axis=1) - prof[:, n:].mean(axis=1)
+    u = d / np.maximum(np.linalg.norm(d, axis=1), 1e-9)[:, None]
+    p = np.einsum("kmc,kc->km", prof, u)
+    tc = tau - tau.mean()
+    ss = float((tc * tc).sum())
+    slope_in = (p[:, :n] * -tc[::-1][None, :]).sum(axis=1) / ss
+    slope_out = (p[:, n:] * tc[None, :]).sum(axis=1) / ss
+    mean_in, mean_out = p[:, :n].mean(axis=1), p[:, n:].mean(axis=1)
+    return {"level_in": mean_in + slope_in * tau.mean(), "level_out": mean_out - slope_out * tau.mean(),
+            "slope_in": slope_in, "slope_out": slope_out, "mean_in": mean_in, "mean_out": mean_out}
+
+
+def ramp_shift_px(lines: dict, sigma_px: float) -> np.ndarray:
+    """How far (px, outward) the gradient peak of a blurred step lies from the step itself
+    because of the shading ramps either side of it (:func:`side_lines`), (K,); 0 where there
+    is no step.
+
+    A step of height D (outside minus inside level) at t = 0 with slopes a_in (t < 0) and a_out
+    (t > 0), blurred by a Gaussian of sigma s, has its gradient extreme at
+    t* = s^2 (a_out - a_in) / D (the derivative of D g(t) + a_in Phi(-t/s) + a_out Phi(t/s) is
+    g(t) (-D t / s^2 - a_in + a_out)). Clipped to +-s (first order only)."""
+    s = max(float(sigma_px), 0.5)
+    step = lines["level_out"] - lines["level_in"]
+    shift = s * s * (lines["slope_out"] - lines["slope_in"]) / np.where(step < 0, step, -np.inf)
+    return np.clip(shift, -s, s)
+
+
+def step_share(lines: dict) -> np.ndarray:
+    """Share of the change across each edge that is a step (K,): the lines' levels at the edge
+    apart, over the windows' means apart. About 1 across a limb (the ball's surface ends: the
+    signal steps to the background within the blur), about 0 across a smooth fall-off: a
+    terminator (the shading of a lit ball falls linearly to black, a kink, no step), the rim of
+    a lamp's spot on a wall, a shadow's soft edge; 0.4-0.5 across the limb of a ball lit from
+    the camera (its brightness falls as sqrt(distance from the limb))."""
+    total = lines["mean_in"] - lines["mean_out"]
+    return (lines["level_in"] - lines["level_out"]) / np.maximum(total, 1e-9)

@@ -700,7 +700,7 @@ def _pass2_reading(cam, sig, fit1: ConeFit, R: float, a_range_rad, rng, geo, hal
         uv2 = sil[ok2] + te[ok2, None] * nrm[ok2]
         # edge points are within a few px of the model outline: Newton from its normalised points
         xy2 = normalize_near(cam, uv2, sil_xy[ok2], iterations=3)
-        fit = _pass2_fit(cam, xy2, fit1, R, a_range_rad, rng, k2, perim)
+        fit = _pass2_fit(cam, xy2, fit1, R, a_range_rad, rng, k2, perim, edge_precision(s2[ok2]))
         if fit is not None and (best is None or _quality(fit) > _quality(best[0])):
             w = edge_widths(t2, g2, te)[ok2]
             w = np.sqrt(np.maximum(w ** 2 - (2.3548 * smooth_px) ** 2, 0.0))
@@ -708,10 +708,32 @@ def _pass2_reading(cam, sig, fit1: ConeFit, R: float, a_range_rad, rng, geo, hal
     return best
 
 
-def _pass2_fit(cam, xy2, fit1: ConeFit, R: float, a_range_rad, rng, k2: int, perim: float) -> ConeFit | None:
+# relative precision of a pass-2 edge: its gradient peak over the outline's median, squared (the
+# variance of a blurred step's position in noise goes as noise^2 / step^2), capped: no few
+# edges may carry the fit
+PRECISION_CAP = 4.0
+
+
+def edge_precision(strength: np.ndarray) -> np.ndarray:
+    """(K,) relative weights of edges of these gradient peaks (:data:`PRECISION_CAP`). Where a
+    ball is lit from one side, its limb steps strongly to the background on the lit side and
+    weakly on the other, where the shading ramp falling to the limb (or the terminator just
+    inside it) pulls the gradient peak inwards: equal weights moved the centre 0.5-1.2 px
+    towards the lit side (dim kind, lit ball on black)."""
+    g = np.asarray(strength, float)
+    med = float(np.median(g)) if len(g) else 0.0
+    if not med > 0:
+        return np.ones(len(g))
+    return np.minimum((g / med) ** 2, PRECISION_CAP)
+
+
+def _pass2_fit(cam, xy2, fit1: ConeFit, R: float, a_range_rad, rng, k2: int, perim: float,
+               weights: np.ndarray | None = None) -> ConeFit | None:
     """The pass-2 cone on one reading's edge points: refined from ``fit1``, or, when that is
-    not clean, the tightest majority's cone if it is very round."""
-    kw = dict(inlier_px=max(1.0, 0.01 * R), rng=rng, corr_points=max(1.0, CORR_LENGTH_PX * k2 / perim))
+    not clean, the tightest majority's cone if it is very round; ``weights`` the edges'
+    relative precision (:func:`edge_precision`) or None."""
+    kw = dict(inlier_px=max(1.0, 0.01 * R), rng=rng, corr_points=max(1.0, CORR_LENGTH_PX * k2 / perim),
+              weights=weights)
     fit = fit_cone(cam, xy2, a_range_rad, start=(fit1.w, fit1.a_rad), **kw)
     if fit is None or fit.sigma_px > clean_rms_px(R):
         # edges of things touching the sphere (a seat, a backrest) pulled the fit off:
