@@ -205,27 +205,14 @@ def side_lines(signal: np.ndarray, origin_px: tuple[float, float], points_px: np
             "slope_in": slope_in, "slope_out": slope_out, "mean_in": mean_in, "mean_out": mean_out}
 
 
-def ramp_shift_px(lines: dict, sigma_px: float) -> np.ndarray:
-    """How far (px, outward) the gradient peak of a blurred step lies from the step itself
-    because of the shading ramps either side of it (:func:`side_lines`), (K,); 0 where there
-    is no step.
-
-    A step of height D (outside minus inside level) at t = 0 with slopes a_in (t < 0) and a_out
-    (t > 0), blurred by a Gaussian of sigma s, has its gradient extreme at
-    t* = s^2 (a_out - a_in) / D (the derivative of D g(t) + a_in Phi(-t/s) + a_out Phi(t/s) is
-    g(t) (-D t / s^2 - a_in + a_out)). Clipped to +-s (first order only)."""
-    s = max(float(sigma_px), 0.5)
-    step = lines["level_out"] - lines["level_in"]
-    shift = s * s * (lines["slope_out"] - lines["slope_in"]) / np.where(step < 0, step, -np.inf)
-    return np.clip(shift, -s, s)
-
-
-def step_share(lines: dict) -> np.ndarray:
-    """Share of the change across each edge that is a step (K,): the lines' levels at the edge
-    apart, over the windows' means apart. About 1 across a limb (the ball's surface ends: the
-    signal steps to the background within the blur), about 0 across a smooth fall-off: a
-    terminator (the shading of a lit ball falls linearly to black, a kink, no step), the rim of
-    a lamp's spot on a wall, a shadow's soft edge; 0.4-0.5 across the limb of a ball lit from
-    the camera (its brightness falls as sqrt(distance from the limb))."""
-    total = lines["mean_in"] - lines["mean_out"]
-    return (lines["level_in"] - lines["level_out"]) / np.maximum(total, 1e-9)
+def step_ratio(lines: dict) -> float:
+    """Share of the change across an outline that is a step, over all its edges
+    (:func:`side_lines`): the lines' levels at the edges apart, summed, over the windows' means
+    apart, summed. About 1 where the surface ends at the outline (a limb onto the background:
+    the signal steps within the blur), 0.5-0.8 for a lit ball whose limb darkens towards it (its
+    brightness falls as sqrt(distance from the limb) when lit from the camera), about 0 across
+    a smooth fall-off: the rim of a lamp's spot on a wall, a soft shadow, a terminator (the
+    shading falls linearly to black: a kink, no step). Where the outline is not seen both
+    differences are noise and add little to either sum."""
+    total = float(np.sum(lines["mean_in"] - lines["mean_out"]))
+    return float(np.sum(lines["level_in"] - lines["level_out"])) / total if total > 0 else 0.0
