@@ -12,7 +12,7 @@ ball's limb is the outermost edge only over a stretch, the limb is round all the
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import cv2
 import numpy as np
@@ -747,10 +747,10 @@ def edge_precision(strength: np.ndarray) -> np.ndarray:
 def _pass2_fit(cam, xy2, fit1: ConeFit, R: float, a_range_rad, rng, k2: int, perim: float,
                weights: np.ndarray | None = None) -> ConeFit | None:
     """The pass-2 cone on one reading's edge points: refined from ``fit1``, or, when that is
-    not clean, the tightest majority's cone if it is very round; ``weights`` the edges'
-    relative precision (:func:`edge_precision`) or None."""
-    kw = dict(inlier_px=max(1.0, 0.01 * R), rng=rng, corr_points=max(1.0, CORR_LENGTH_PX * k2 / perim),
-              weights=weights)
+    not clean, the tightest majority's cone if it is very round; with ``weights`` (the edges'
+    relative precision, :func:`edge_precision`) its place then refined by them
+    (:func:`_weighted_place`)."""
+    kw = dict(inlier_px=max(1.0, 0.01 * R), rng=rng, corr_points=max(1.0, CORR_LENGTH_PX * k2 / perim))
     fit = fit_cone(cam, xy2, a_range_rad, start=(fit1.w, fit1.a_rad), **kw)
     if fit is None or fit.sigma_px > clean_rms_px(R):
         # edges of things touching the sphere (a seat, a backrest) pulled the fit off:
@@ -762,7 +762,25 @@ def _pass2_fit(cam, xy2, fit1: ConeFit, R: float, a_range_rad, rng, k2: int, per
                 and alt.inliers.sum() >= TIGHT_MIN_SUPPORT * k2
                 and (fit is None or _quality(alt) > _quality(fit))):
             fit = alt
-    return fit
+    return _weighted_place(cam, xy2, fit, a_range_rad, weights, kw)
+
+
+WEIGHTED_MIN_INLIERS = 0.8
+
+
+def _weighted_place(cam, xy2, fit: ConeFit | None, a_range_rad, weights, kw) -> ConeFit | None:
+    """``fit`` with its cone (axis, half-angle, their covariance) refitted from it with the
+    edges weighted by their precision; its inliers, residuals and spread (what the outline is
+    judged on) stay the equally weighted fit's: the weights move the place, they do not make an
+    outline acceptable (weighted, a texture outline in a ball-free scene became round enough to
+    accept). Only when the weighted cone has WEIGHTED_MIN_INLIERS of the inliers (it did not run
+    off to a few strong edges)."""
+    if fit is None or weights is None:
+        return fit
+    fw = fit_cone(cam, xy2, a_range_rad, start=(fit.w, fit.a_rad), weights=weights, **kw)
+    if fw is None or fw.inliers.sum() < WEIGHTED_MIN_INLIERS * fit.inliers.sum():
+        return fit
+    return replace(fit, w=fw.w, a_rad=fw.a_rad, basis=fw.basis, cov_params=fw.cov_params)
 
 
 def _quality(fit: ConeFit) -> float:
