@@ -47,6 +47,7 @@ class ConeFit:
     reading: str = ""  # which edges it was fitted to, when a caller records it
     edge_uv_px: np.ndarray | None = None  # (N,2) the edge points fitted, when a caller records them
     smear: object | None = None  # the motion smear measured around the outline (image.smear.Smear), when read as one
+    edge_xy: np.ndarray | None = None  # (N,2) normalised edge points fitted, when a caller records them
 
     @property
     def inlier_fraction(self) -> float:

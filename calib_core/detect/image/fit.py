@@ -395,7 +395,9 @@ def _fitted(cam, sig: _Signal, p2, R: float, sphere_radius_m: float) -> tuple[Ca
     """The pass-2 fit as a candidate fit (centre, covariance, outline, support, score,
     contrast, range; extras), not yet judged; and the outline's outside mismatch."""
     fit, ok2, s2, k2, widths = p2
-    centre, cov = centre_uv_and_cov(cam, fit)
+    # the centre from the precision-weighted cone (:func:`_weighted_place`); the outline, its
+    # judgement and the score from the equally weighted fit
+    centre, cov = centre_uv_and_cov(cam, _weighted_place(cam, fit, edge_precision(s2[ok2]), R, k2))
     # systematic outline deviations (ragged open-mesh envelope, shading, JPEG) do not average
     # out over the edge points; a floor of SYS_FRACTION x the edge RMS per axis matched the
     # errors over the synthetic benchmark presets (approximation)
@@ -717,7 +719,7 @@ def _pass2_reading(cam, sig, fit1: ConeFit, R: float, a_range_rad, rng, geo, hal
         uv2 = sil[ok2] + te[ok2, None] * nrm[ok2]
         # edge points are within a few px of the model outline: Newton from its normalised points
         xy2 = normalize_near(cam, uv2, sil_xy[ok2], iterations=3)
-        fit = _pass2_fit(cam, xy2, fit1, R, a_range_rad, rng, k2, perim, edge_precision(s2[ok2]))
+        fit = _pass2_fit(cam, xy2, fit1, R, a_range_rad, rng, k2, perim)
         if fit is not None and (best is None or _quality(fit) > _quality(best[0])):
             w = edge_widths(t2, g2, te)[ok2]
             w = np.sqrt(np.maximum(w ** 2 - (2.3548 * smooth_px) ** 2, 0.0))
@@ -744,14 +746,13 @@ def edge_precision(strength: np.ndarray) -> np.ndarray:
     return np.minimum((g / med) ** 2, PRECISION_CAP)
 
 
-def _pass2_fit(cam, xy2, fit1: ConeFit, R: float, a_range_rad, rng, k2: int, perim: float,
-               weights: np.ndarray | None = None) -> ConeFit | None:
-    """The pass-2 cone on one reading's edge points: refined from ``fit1``, or, when that is
-    not clean, the tightest majority's cone if it is very round; with ``weights`` (the edges'
-    relative precision, :func:`edge_precision`) its place then refined by them
-    (:func:`_weighted_place`)."""
+def _pass2_fit(cam, xy2, fit1: ConeFit, R: float, a_range_rad, rng, k2: int, perim: float) -> ConeFit | None:
+    """The pass-2 cone on one reading's edge points (recorded as its ``edge_xy``): refined from
+    ``fit1``, or, when that is not clean, the tightest majority's cone if it is very round."""
     kw = dict(inlier_px=max(1.0, 0.01 * R), rng=rng, corr_points=max(1.0, CORR_LENGTH_PX * k2 / perim))
     fit = fit_cone(cam, xy2, a_range_rad, start=(fit1.w, fit1.a_rad), **kw)
+    if fit is not None:
+        fit.edge_xy = xy2
     if fit is None or fit.sigma_px > clean_rms_px(R):
         # edges of things touching the sphere (a seat, a backrest) pulled the fit off:
         # search again for the cone the tightest majority of the edges lie on
@@ -762,22 +763,27 @@ def _pass2_fit(cam, xy2, fit1: ConeFit, R: float, a_range_rad, rng, k2: int, per
                 and alt.inliers.sum() >= TIGHT_MIN_SUPPORT * k2
                 and (fit is None or _quality(alt) > _quality(fit))):
             fit = alt
-    return _weighted_place(cam, xy2, fit, a_range_rad, weights, kw)
+            fit.edge_xy = xy2
+    return fit
 
 
 WEIGHTED_MIN_INLIERS = 0.8
 
 
-def _weighted_place(cam, xy2, fit: ConeFit | None, a_range_rad, weights, kw) -> ConeFit | None:
-    """``fit`` with its cone (axis, half-angle, their covariance) refitted from it with the
-    edges weighted by their precision; its inliers, residuals and spread (what the outline is
-    judged on) stay the equally weighted fit's: the weights move the place, they do not make an
-    outline acceptable (weighted, a texture outline in a ball-free scene became round enough to
-    accept). Only when the weighted cone has WEIGHTED_MIN_INLIERS of the inliers (it did not run
-    off to a few strong edges)."""
-    if fit is None or weights is None:
+def _weighted_place(cam, fit: ConeFit, weights: np.ndarray, R: float, k2: int) -> ConeFit:
+    """The chosen pass-2 ``fit`` with its cone (axis, half-angle, their covariance) refitted from
+    it with its edges weighted by their precision (:func:`edge_precision`); its inliers,
+    residuals and spread (what the outline was chosen and is judged on) stay the equally
+    weighted fit's: the caller takes only the centre from it, after every choice (weighted
+    inside the readings, a texture outline in ball-free big s1078 became acceptable; the
+    weighted outline judged, motion s1038's smeared outline lost to a sharper partial one). Only when the weighted cone keeps
+    WEIGHTED_MIN_INLIERS of the inliers (it did not run off to a few strong edges)."""
+    if fit.edge_xy is None or len(weights) != len(fit.edge_xy):
         return fit
-    fw = fit_cone(cam, xy2, a_range_rad, start=(fit.w, fit.a_rad), weights=weights, **kw)
+    sil = silhouette_uv(cam, fit.w, fit.a_rad, n=k2)
+    perim = float(np.linalg.norm(np.diff(np.vstack([sil, sil[:1]]), axis=0), axis=1).sum())
+    fw = fit_cone(cam, fit.edge_xy, (1e-4, 1.5), inlier_px=max(1.0, 0.01 * R), start=(fit.w, fit.a_rad),
+                  corr_points=max(1.0, CORR_LENGTH_PX * k2 / max(perim, 1e-9)), weights=weights)
     if fw is None or fw.inliers.sum() < WEIGHTED_MIN_INLIERS * fit.inliers.sum():
         return fit
     return replace(fit, w=fw.w, a_rad=fw.a_rad, basis=fw.basis, cov_params=fw.cov_params)
