@@ -21,10 +21,8 @@ from scipy.ndimage import gaussian_filter1d
 from calib_core.camera import CameraModel
 from calib_core.detect.image.cone import (ConeFit, centre_uv_and_cov, fit_cone, normalize_near,
                                           silhouette_uv, silhouette_xy)
-from calib_core.detect.image.edges import (SIDE_GAP_SIGMAS, SIDE_MIN_WINDOW_PX, SIDE_WINDOW_SIGMAS,
-                                           edge_peaks, edge_widths, gradient_magnitude, outward_normals,
-                                           pick_edges, ray_directions, sample_profiles, side_lines,
-                                           smooth_roi, step_ratio)
+from calib_core.detect.image.edges import (edge_peaks, edge_widths, gradient_magnitude, outward_normals,
+                                           pick_edges, ray_directions, sample_profiles, smooth_roi)
 from calib_core.detect.image.blur import (BLUR_MAX_RADIUS_FRACTION, CLEAN_RMS_FRAC, CLEAN_RMS_PX,  # noqa: F401
                                           SHARP_EDGE_WIDTH_PX, SMALL_RADIUS_PX, blur_floor_px2, clean_rms_px, is_blurred,
                                           outline_rms_limit_px)
@@ -430,19 +428,7 @@ def _fitted(cam, sig: _Signal, p2, R: float, sphere_radius_m: float) -> tuple[Ca
         res.extras["smear_deg"] = round(float(np.degrees(fit.smear.angle_rad)), 1)
     res.extras["outside_mismatch"] = round(outside_bad, 4)
     res.extras["outline_coverage"] = round(support, 3)
-    if sig.diff is None and visible.sum() >= 8:
-        nrm_f = outward_normals(sil_f, sil_f.mean(axis=0))
-        s = max(width if np.isfinite(width) else 0.0, MIN_EDGE_WIDTH_PX) / 2.3548
-        sig_s = sig.around(sil_f[visible], (SIDE_GAP_SIGMAS + SIDE_WINDOW_SIGMAS) * s + SIDE_MIN_WINDOW_PX)
-        res.extras["step_ratio"] = round(step_ratio(side_lines(sig_s.img, sig_s.origin, sil_f[visible],
-                                                               nrm_f[visible], s)), 3)
     return res, outside_bad
-
-
-# without a background, at least this share of the change across an outline must be a step
-# (edges.step_ratio: ~1 for a limb, >= ~0.5 for a ball lit from the camera, ~0 for the rim of a
-# lamp's spot on a wall: the dim kind's ball-free s1033 at 0.01, its balls at 0.58-0.93)
-MIN_STEP_RATIO = 0.3
 
 
 def _judge(cam, res: CandidateFit, R: float, outside_bad: float, with_background: bool) -> None:
@@ -464,9 +450,6 @@ def _judge(cam, res: CandidateFit, R: float, outside_bad: float, with_background
         res.reason = "sphere cut by the image border" if partial_ok else "no round outline near the border"
     elif not clean:
         res.ok, res.reason = False, f"outline not round (edge RMS {fit.sigma_px:.1f} px)"
-    elif res.extras.get("step_ratio", 1.0) < MIN_STEP_RATIO:
-        res.ok, res.credible = False, False
-        res.reason = "no step at the outline (a smooth fall-off: a lamp's spot, a soft shadow)"
     elif support < MIN_SUPPORT:
         res.ok, res.reason = False, f"outline {100 * (1 - support):.0f} % hidden or too faint"
     elif (outside_bad > (0.2 if with_background else OUTSIDE_MISMATCH_CLUTTER)
