@@ -30,7 +30,7 @@ def main(argv=None):
           f"{'diff % of nominal':>17}")
     for root in roots:
         s = load_session(root)
-        data = pipeline._as_data(s)
+        data = pipeline.as_data(s)
         ids = pipeline.beam_capture_ids([c.id for c in s.captures])
         crops = [pipeline.beam_crop_of(data, c, {}) for c in ids]
         nominal = s.beam_width_deg or 1.0

@@ -4,9 +4,10 @@ Runs the detector on cached synthetic cases (``bench_image_presets.py --cache``)
 on; where the cue proposed candidates, runs it again with the cue off and lists every image
 whose result changed (found, error to the truth, score, reason). Prints, per kind, recall,
 false detections and ball-free finds with the cue off and on. Cues: "pattern" (the fourth
-cue, :mod:`calib_core.detect.image.pattern`).
+cue, :mod:`calib_core.detect.image.pattern`), "closed" (the fifth, see-through balls,
+:mod:`calib_core.detect.image.closing`: re-run only where it added fits).
 
-Run: .venv/bin/python benchmarks/bench_cue_diff.py --kinds sports,outdoor --seeds 40 --cache DIR [--negatives]
+Run: .venv/bin/python benchmarks/bench_cue_diff.py --kinds sports,outdoor --seeds 40 --cache DIR [--negatives] [--cue closed]
 """
 
 from __future__ import annotations
@@ -23,18 +24,32 @@ sys.path.insert(0, str(ROOT))
 import benchmarks.bench_image_presets as bip  # noqa: E402
 from calib_core.detect.image import detect as im  # noqa: E402
 
-REAL = im.enclosing_candidates
 CALLED = []
 
 
-def _spy(cands, r_bounds, most=3):
-    out = REAL(cands, r_bounds, most)
+def _pattern_spy(cands, r_bounds, most=3):
+    out = CUES["pattern"][1](cands, r_bounds, most)
     CALLED.append(len(out))
     return out
 
 
-def _off(cands, r_bounds, most=3):
+def _pattern_off(cands, r_bounds, most=3):
     return []
+
+
+def _closed_spy(look, cands, fits):
+    out = CUES["closed"][1](look, cands, fits)
+    CALLED.append(len(out[1]) - len(fits))  # (a discarded guess leaves the detection as it was)
+    return out
+
+
+def _closed_off(look, cands, fits):
+    return cands, fits
+
+
+# cue: (detect's attribute, the real function, spy that records whether it changed anything, off)
+CUES = {"pattern": ("enclosing_candidates", im.enclosing_candidates, _pattern_spy, _pattern_off),
+        "closed": ("_closed_cue", im._closed_cue, _closed_spy, _closed_off)}
 
 
 def outcome(case, with_ball, bg=False):
@@ -54,7 +69,8 @@ def outcome_text(o):
         else f"found (ball-free) score {o['score']:.2f}"
 
 
-def run(kinds, seeds, negatives):
+def run(kinds, seeds, negatives, cue="pattern"):
+    attr, real, spy, off_fn = CUES[cue]
     rows = []
     for kind in kinds:
         tally = {"off": [0, 0, 0], "on": [0, 0, 0]}  # hits, wrong with ball, ball-free finds
@@ -63,13 +79,13 @@ def run(kinds, seeds, negatives):
             for wb in ((True, False) if negatives else (True,)):
                 case = bip._case(kind, seed, 0.5, with_ball=wb)
                 CALLED.clear()
-                im.enclosing_candidates = _spy
+                setattr(im, attr, spy)
                 on = outcome(case, wb)
                 off = on
                 if any(CALLED):
-                    im.enclosing_candidates = _off
+                    setattr(im, attr, off_fn)
                     off = outcome(case, wb)
-                im.enclosing_candidates = REAL
+                setattr(im, attr, real)
                 n, nn = n + wb, nn + (not wb)
                 for key, o in (("off", off), ("on", on)):
                     if wb:
@@ -95,9 +111,10 @@ def main(argv=None) -> int:
     ap.add_argument("--first", type=int, default=1000)
     ap.add_argument("--negatives", action="store_true")
     ap.add_argument("--cache", type=Path, required=True)
+    ap.add_argument("--cue", choices=sorted(CUES), default="pattern")
     a = ap.parse_args(argv)
     bip.CACHE = a.cache
-    run(a.kinds.split(","), range(a.first, a.first + a.seeds), a.negatives)
+    run(a.kinds.split(","), range(a.first, a.first + a.seeds), a.negatives, a.cue)
     return 0
 
 

@@ -18,7 +18,7 @@ from typing import Callable
 
 import numpy as np
 
-from calib_core.detect.entries import (SessionData, _as_data, beam_capture_ids, beam_crop_of,  # noqa: F401  (public API)
+from calib_core.detect.entries import (SessionData, as_data, beam_capture_ids, beam_crop_of,  # noqa: F401  (public API)
                                        beam_width_from_crops, detect_image_entry, detect_one, detect_sonar_entry,
                                        estimate_session_beam_width, session_beam_width)
 from calib_core.detect.image.score import entry_logit
@@ -102,7 +102,7 @@ def detect_session(session_or_data, detections: dict, progress: Progress | None 
     """
     from calib_core.parallel import run_detections
 
-    data = _as_data(session_or_data)
+    data = as_data(session_or_data)
     data.adopt_beam_width(detections)
     todo = pending(data.session, detections, captures, redetect_auto)
     sonar_ids = [cid for cid, sensor in todo if sensor == "sonar"]
@@ -606,7 +606,7 @@ def refit_image(session_or_data, capture_id: str, cam: str, hint_uv_px, hint_rad
 def refit_sonar(session_or_data, capture_id: str, seed_center_m) -> dict:
     """An operator picked/dragged the sphere centre to ``seed_center_m`` (sonar frame): refit near it."""
     seed = np.asarray(seed_center_m, float).reshape(3)
-    data = _as_data(session_or_data)
+    data = as_data(session_or_data)
     entry = detect_sonar_entry(data, capture_id, seed_center_m=seed)
     if "center" in entry and np.linalg.norm(np.asarray(entry["center"]) - seed) <= 2.0 * data.session.sphere_diameter_m:
         entry.update(status="corrected", seed_center_m=[float(v) for v in seed], refit=True)

@@ -22,6 +22,9 @@ class _Look:
     def disc_candidates(self):
         return []
 
+    def closed_candidates(self):  # (the see-through cue after it: nothing here)
+        return []
+
     def refine(self, c):
         self.rng.random(5)
         return CandidateFit(False, "no round outline")

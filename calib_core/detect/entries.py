@@ -80,7 +80,7 @@ def _check_image_size(path, image, cam: CameraModel) -> None:
         raise SessionError(path, f"image is {w} x {h} but its intrinsics say {cam.width_px} x {cam.height_px}")
 
 
-def _as_data(session_or_data) -> SessionData:
+def as_data(session_or_data) -> SessionData:
     return session_or_data if isinstance(session_or_data, SessionData) else SessionData(session_or_data)
 
 
@@ -90,7 +90,7 @@ def detect_image_entry(data: SessionData | Session, capture_id: str, cam: str,
     from calib_core.detect.image.detect import detect_sphere_in_image
     from calib_core.io.images import load_image
 
-    data = _as_data(data)
+    data = as_data(data)
     path = data.session.capture(capture_id).image_paths[cam]
     model = data.camera(cam)
     image = load_image(path, (model.width_px, model.height_px))
@@ -109,7 +109,7 @@ def detect_sonar_entry(data: SessionData | Session, capture_id: str, seed_center
     from calib_core.detect.sonar.detect import detect_sphere_in_cloud
     from calib_core.io.clouds import load_cloud
 
-    data = _as_data(data)
+    data = as_data(data)
     s = data.session
     if points_sonar_m is None:
         points_sonar_m = load_cloud(s.capture(capture_id).cloud_path).points_m
@@ -147,9 +147,9 @@ def _operator_center(detections: dict, cid: str):
 
 def beam_capture_ids(capture_ids: list[str]) -> list[str]:
     """The captures the beam-width estimate looks at (spread over the session, at most its maximum)."""
-    from calib_core.detect.sonar.beam import MAX_CAPTURES, _spread_order
+    from calib_core.detect.sonar.beam import MAX_CAPTURES, spread_order
 
-    return [capture_ids[i] for i in _spread_order(len(capture_ids))][:MAX_CAPTURES]
+    return [capture_ids[i] for i in spread_order(len(capture_ids))][:MAX_CAPTURES]
 
 
 def beam_crop_of(data: SessionData, cid: str, detections: dict):

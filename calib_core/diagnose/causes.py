@@ -128,9 +128,9 @@ def diagnose_session(session_or_data, detections: dict, notes: list | None = Non
     'moved' or 'sonar' flag once, from the first camera that raised it). ``notes``, when given,
     receives the solver's plain words when a camera's captures show no clear consensus
     (:func:`calib_core.solve.consensus.no_consensus_phrase`)."""
-    from calib_core.pipeline import _as_data
+    from calib_core.pipeline import as_data
 
-    data = _as_data(session_or_data)
+    data = as_data(session_or_data)
     flags: list[Flag] = []
     seen: set = set()
     for cam in data.session.cameras:

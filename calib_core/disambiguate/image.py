@@ -27,7 +27,7 @@ def candidate_points_cam_m(cam: CameraModel, uvr: np.ndarray) -> np.ndarray:
     return cam.rays(uvr[:, :2]) * uvr[:, 2:3]
 
 
-def _rigid_fit(X_sonar_m: np.ndarray, P_cam_m: np.ndarray) -> np.ndarray | None:
+def rigid_fit(X_sonar_m: np.ndarray, P_cam_m: np.ndarray) -> np.ndarray | None:
     """T_cam_sonar (4x4) minimising |R X + t - P| over >= 3 point pairs (Kabsch)."""
     cx, cp = X_sonar_m.mean(axis=0), P_cam_m.mean(axis=0)
     if np.linalg.matrix_rank(X_sonar_m - cx, tol=1e-3) < 2:
@@ -73,7 +73,7 @@ class Resolution:
     rough_agree: int = 0
 
 
-def _predict_places(out: Resolution, cam: CameraModel, T_cam_sonar: np.ndarray, centers_sonar_m: dict,
+def predict_places(out: Resolution, cam: CameraModel, T_cam_sonar: np.ndarray, centers_sonar_m: dict,
                     predict_for) -> None:
     """``out.predicted_uvr[c]`` = (u, v, range) where the registration puts capture ``c``'s
     sphere, for the captures in ``predict_for`` not yet predicted and inside the image."""
@@ -116,7 +116,7 @@ def resolve_candidates(cam: CameraModel, centers_sonar_m: dict[str, np.ndarray],
         return Resolution()
     X = {c: np.asarray(centers_sonar_m[c], float) for c in ids}
     P = {c: candidate_points_cam_m(cam, candidates[c]) for c in ids}
-    tol = {c: _tolerances(candidates[c], c in set(range_free)) for c in ids}
+    tol = {c: candidate_tolerances(candidates[c], c in set(range_free)) for c in ids}
     best_T, n_in = _ransac(ids, X, P, tol, iterations, seed)
     if best_T is None or n_in < 4:
         return Resolution()
@@ -124,18 +124,18 @@ def resolve_candidates(cam: CameraModel, centers_sonar_m: dict[str, np.ndarray],
     best_T = _refined(cam, best_T, plain, X, P, tol, candidates)
     best_T, checks_px = _checked_on_three(cam, best_T, plain, [c for c in ids if c in set(rough)], X, P, tol, candidates)
     out = Resolution(T_cam_sonar=best_T, checks_px=checks_px)
-    _agreement(out, cam, plain, X, P, tol, candidates)
-    out.rough_agree = len(_single_inliers(best_T, [c for c in ids if c in set(rough)], X, P, tol))
+    fill_agreement(out, cam, plain, X, P, tol, candidates)
+    out.rough_agree = len(single_inliers(best_T, [c for c in ids if c in set(rough)], X, P, tol))
     for c in ids:
         _decide(out, cam, c, best_T[:3, :3] @ X[c] + best_T[:3, 3], P[c], tol[c])
-    _predict_places(out, cam, best_T, centers_sonar_m, predict_for)
+    predict_places(out, cam, best_T, centers_sonar_m, predict_for)
     if checks_px:
         targets = {c: np.asarray(centers_sonar_m[c], float) for c in {*checks_px, *out.predicted_uvr}}
-        out.sigma_px = _three_point_sigma_px(cam, best_T, _single_inliers(best_T, plain, X, P, tol), X, P, targets)
+        out.sigma_px = three_point_sigma_px(cam, best_T, single_inliers(best_T, plain, X, P, tol), X, P, targets)
     return out
 
 
-def _tolerances(uvr, range_free: bool) -> np.ndarray:
+def candidate_tolerances(uvr, range_free: bool) -> np.ndarray:
     """(K,2) per candidate: the tolerance across its ray and along it (m); along it none (inf)
     for a candidate whose range is not measured."""
     t = 0.05 * np.asarray(uvr, float).reshape(-1, 3)[:, 2] + 0.03
@@ -172,7 +172,7 @@ def _fit_points(T: np.ndarray, inl, X, P, tol) -> np.ndarray:
 RANGE_REL_SIGMA = 0.015
 
 
-def _three_point_sigma_px(cam: CameraModel, T: np.ndarray, inl, X, P, targets: dict) -> dict:
+def three_point_sigma_px(cam: CameraModel, T: np.ndarray, inl, X, P, targets: dict) -> dict:
     """{capture: px} how far the projection of each target's sonar centre moves when the refit on
     the 3 plain detections ``inl`` has one of their ranges RANGE_REL_SIGMA off (root sum of
     squares over the three)."""
@@ -181,7 +181,7 @@ def _three_point_sigma_px(cam: CameraModel, T: np.ndarray, inl, X, P, targets: d
 
     base, sq = project(T), {c: 0.0 for c in targets}
     for k in inl:
-        T_k = _rigid_fit(np.array([X[c] for c in inl]),
+        T_k = rigid_fit(np.array([X[c] for c in inl]),
                          np.array([P[c][0] * (1 + RANGE_REL_SIGMA * (c == k)) for c in inl]))
         if T_k is None:
             return {c: float("inf") for c in targets}
@@ -190,17 +190,17 @@ def _three_point_sigma_px(cam: CameraModel, T: np.ndarray, inl, X, P, targets: d
     return {c: float(np.sqrt(v)) for c, v in sq.items()}
 
 
-def _single_inliers(T, ids, X, P, tol) -> list:
+def single_inliers(T, ids, X, P, tol) -> list:
     """Captures with one candidate within tolerance of the registered sonar centre."""
     return [c for c in ids if len(P[c]) == 1 and _scaled(P[c], T[:3, :3] @ X[c] + T[:3, 3], tol[c])[0] <= 1.0]
 
 
 def _refined(cam: CameraModel, T: np.ndarray, ids, X, P, tol, candidates) -> np.ndarray:
     """The registration refitted on every plain detection it agrees with (>= 4), else as given."""
-    inl = _single_inliers(T, ids, X, P, tol)
+    inl = single_inliers(T, ids, X, P, tol)
     if len(inl) < 4:
         return T
-    T2 = _rigid_fit(np.array([X[c] for c in inl]), _fit_points(T, inl, X, P, tol))
+    T2 = rigid_fit(np.array([X[c] for c in inl]), _fit_points(T, inl, X, P, tol))
     return T if T2 is None else T2
 
 
@@ -216,13 +216,13 @@ def _checked_on_three(cam: CameraModel, T: np.ndarray, plain, rough, X, P, tol, 
     exactly what the prediction is used for: where a fourth sphere lands in the image. They stay
     out of the refit (their centres are rough; a refit on them put a 3.5 px centre into a solve).
     """
-    inl = _single_inliers(T, plain, X, P, tol)
+    inl = single_inliers(T, plain, X, P, tol)
     if len(inl) != 3 or not rough:
         return T, {}
-    T3 = _rigid_fit(np.array([X[c] for c in inl]), _fit_points(T, inl, X, P, tol))
-    if T3 is None or len(_single_inliers(T3, inl, X, P, tol)) != 3:
+    T3 = rigid_fit(np.array([X[c] for c in inl]), _fit_points(T, inl, X, P, tol))
+    if T3 is None or len(single_inliers(T3, inl, X, P, tol)) != 3:
         return T, {}
-    agree = _single_inliers(T3, rough, X, P, tol)
+    agree = single_inliers(T3, rough, X, P, tol)
     if not agree:
         return T, {}
     uv = cam.project(np.array([T3[:3, :3] @ X[c] + T3[:3, 3] for c in agree]))
@@ -230,10 +230,10 @@ def _checked_on_three(cam: CameraModel, T: np.ndarray, plain, rough, X, P, tol, 
     return T3, {c: float(v) for c, v in zip(agree, d)}
 
 
-def _agreement(out: Resolution, cam: CameraModel, ids, X, P, tol, candidates) -> None:
+def fill_agreement(out: Resolution, cam: CameraModel, ids, X, P, tol, candidates) -> None:
     """Fill ``out.support`` and ``out.residual_px`` (see :class:`Resolution`)."""
     T = out.T_cam_sonar
-    inl = _single_inliers(T, ids, X, P, tol)
+    inl = single_inliers(T, ids, X, P, tol)
     out.support = len(inl)
     if inl:
         X_cam = np.array([T[:3, :3] @ X[c] + T[:3, 3] for c in inl])
@@ -254,7 +254,7 @@ def _ransac(ids: list, X: dict, P: dict, tol: dict, iterations: int, seed: int) 
         pick = rng.choice(len(ids), 3, replace=False)
         sel = [ids[i] for i in pick]
         choice = [rng.integers(len(P[c])) for c in sel]
-        T = _rigid_fit(np.array([X[c] for c in sel]), np.array([P[c][k] for c, k in zip(sel, choice)]))
+        T = rigid_fit(np.array([X[c] for c in sel]), np.array([P[c][k] for c, k in zip(sel, choice)]))
         if T is None:
             continue
         n_in, cost = 0, 0.0

@@ -68,14 +68,14 @@ def image_phrase(cam: str) -> str:
     return f"camera {cam}: only this candidate lands on the image's detection (rough rig registration)"
 
 
-def _usable(entry: dict | None) -> bool:
+def usable_entry(entry: dict | None) -> bool:
     return bool(entry) and entry.get("status") != "rejected"
 
 
 def sightings_sonar_m(entry: dict | None) -> np.ndarray:
     """(K,3) every round object of the sphere's size one sonar entry records (m, sonar frame):
     its centre, its ``two_candidates`` and its ``other_candidates``."""
-    if not _usable(entry):
+    if not usable_entry(entry):
         return np.zeros((0, 3))
     rows = [entry["center"]] if entry.get("center") is not None else []
     rows += list(entry.get("two_candidates") or []) + list(entry.get("other_candidates") or [])
@@ -115,7 +115,7 @@ def rig_registration(cam: CameraModel, detections: dict, cam_name: str) -> np.nd
     centers, cands = {}, {}
     for cid, d in detections.items():
         son, img = d.get("sonar"), d.get(cam_name)
-        if _usable(son) and _usable(img) and son.get("center") is not None and img.get("center") is not None \
+        if usable_entry(son) and usable_entry(img) and son.get("center") is not None and img.get("center") is not None \
                 and img.get("range_m"):
             centers[cid] = np.asarray(son["center"], float)
             cands[cid] = np.array([[*img["center"], img["range_m"]]], float)
@@ -126,7 +126,7 @@ def choose_by_image(candidates_sonar_m: np.ndarray, cam: CameraModel, T_cam_sona
                     image_entry: dict | None) -> int | None:
     """Index of the only candidate that lands on the image detection (within the gate of
     :mod:`calib_core.disambiguate.image`, the others beyond twice it), else None."""
-    if T_cam_sonar is None or not _usable(image_entry) or image_entry.get("center") is None \
+    if T_cam_sonar is None or not usable_entry(image_entry) or image_entry.get("center") is None \
             or not image_entry.get("range_m"):
         return None
     rng_m = float(image_entry["range_m"])
@@ -151,7 +151,7 @@ def choose_sonar_candidates(detections: dict, cams: dict[str, CameraModel], radi
         others = {o: sightings_sonar_m(d.get("sonar")) for o, d in detections.items() if o != cid and d.get("sonar")}
         k, why = choose_by_scenery(cands, others, radius_m)
         if k is None:
-            k, why = _by_images(cands, detections[cid], detections, cams, rigs)
+            k, why = by_images(cands, detections[cid], detections, cams, rigs)
         if k is not None:
             out[cid] = SonarChoice(cands[k], why)
     return out
@@ -160,7 +160,7 @@ def choose_sonar_candidates(detections: dict, cams: dict[str, CameraModel], radi
 def winner_and_losers_sonar_m(entry: dict | None) -> np.ndarray:
     """(K,3) a found entry's centre (row 0) and the ``other_candidates`` it beat; (0,3) when
     it found nothing or beat nothing."""
-    if not _usable(entry) or entry.get("center") is None or not entry.get("other_candidates"):
+    if not usable_entry(entry) or entry.get("center") is None or not entry.get("other_candidates"):
         return np.zeros((0, 3))
     return np.asarray([entry["center"], *entry["other_candidates"]], float).reshape(-1, 3)
 
@@ -180,14 +180,14 @@ def reexamine_winners(detections: dict, cams: dict[str, CameraModel], radius_m: 
         k, _ = choose_by_scenery(cands, others, radius_m)
         if not k:  # no choice, or the winner itself
             continue
-        k_img, _ = _by_images(cands, detections[cid], detections, cams, rigs)
+        k_img, _ = by_images(cands, detections[cid], detections, cams, rigs)
         if k_img is not None and k_img != k:
             continue
         out[cid] = SonarChoice(cands[k], winner_phrase(int(seen_counts(cands[:1], others, radius_m)[0]), len(others)))
     return out
 
 
-def _by_images(cands: np.ndarray, capture: dict, detections: dict, cams: dict, rigs: dict) -> tuple[int | None, str]:
+def by_images(cands: np.ndarray, capture: dict, detections: dict, cams: dict, rigs: dict) -> tuple[int | None, str]:
     """The image cue over every camera of one capture (``rigs`` caches the registrations)."""
     votes = {}
     for name, cam in cams.items():

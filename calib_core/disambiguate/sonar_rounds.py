@@ -23,7 +23,7 @@ import numpy as np
 
 from calib_core.camera import CameraModel
 from calib_core.disambiguate.image import candidate_points_cam_m
-from calib_core.disambiguate.sonar import (MIN_OTHERS, SonarChoice, _by_images, _usable, choose_sonar_candidates,
+from calib_core.disambiguate.sonar import (MIN_OTHERS, SonarChoice, by_images, usable_entry, choose_sonar_candidates,
                                           reexamine_winners, rig_registration, seen_counts, sightings_sonar_m)
 
 # a plain sonar centre seen (within a sphere radius) in at least this share of the other
@@ -51,7 +51,7 @@ def settle_sonar(detections: dict, cams: dict[str, CameraModel], radius_m: float
     rigs: dict = {}
     for cid in [c for c in ambiguous if c not in out]:
         cands = np.asarray(detections[cid]["sonar"].get("two_candidates") or [], float).reshape(-1, 3)
-        k, why = _by_images(cands, settled[cid], settled, cams, rigs)
+        k, why = by_images(cands, settled[cid], settled, cams, rigs)
         if k is not None:
             out[cid] = SonarChoice(cands[k], why)
     out.update(past_scenery(settled, cams, radius_m, [c for c in plain if c not in out], rigs))
@@ -77,7 +77,7 @@ def past_scenery(detections: dict, cams: dict[str, CameraModel], radius_m: float
     out = {}
     for cid in plain:
         son = detections[cid].get("sonar")
-        if not _usable(son) or son.get("center") is None:
+        if not usable_entry(son) or son.get("center") is None:
             continue
         others = {o: sightings_sonar_m(d.get("sonar")) for o, d in detections.items() if o != cid and d.get("sonar")}
         n = len(others)
@@ -85,7 +85,7 @@ def past_scenery(detections: dict, cams: dict[str, CameraModel], radius_m: float
         if n < MIN_OTHERS or seen < max(MIN_OTHERS, SCENERY_WINNER_SHARE * n):
             continue
         places = _camera_places(detections, cams, rigs, cid, np.asarray(son["center"], float))
-        if not places or len(places) < sum(1 for c in cams if _usable(detections[cid].get(c))
+        if not places or len(places) < sum(1 for c in cams if usable_entry(detections[cid].get(c))
                                            and detections[cid][c].get("center") is not None):
             continue  # a camera that sees the sphere on the winner (or cannot say) vetoes
         pts = np.array([p for p, _ in places.values()])
@@ -102,7 +102,7 @@ def _camera_places(detections: dict, cams: dict, rigs: dict, cid: str, winner_so
     out = {}
     for name, cam in cams.items():
         img = detections[cid].get(name)
-        if not _usable(img) or img.get("center") is None or not img.get("range_m"):
+        if not usable_entry(img) or img.get("center") is None or not img.get("range_m"):
             continue
         if name not in rigs:
             rigs[name] = rig_registration(cam, detections, name)

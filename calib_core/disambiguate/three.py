@@ -18,8 +18,8 @@ from __future__ import annotations
 import numpy as np
 
 from calib_core.camera import CameraModel
-from calib_core.disambiguate.image import (Resolution, _agreement, _predict_places, _rigid_fit, _single_inliers,
-                                           _three_point_sigma_px, _tolerances, candidate_points_cam_m)
+from calib_core.disambiguate.image import (Resolution, fill_agreement, predict_places, rigid_fit, single_inliers,
+                                           three_point_sigma_px, candidate_tolerances, candidate_points_cam_m)
 
 
 def register_on_three(cam: CameraModel, centers_sonar_m: dict, candidates: dict, plain: list,
@@ -37,13 +37,13 @@ def register_on_three(cam: CameraModel, centers_sonar_m: dict, candidates: dict,
         return None
     X = {c: np.asarray(centers_sonar_m[c], float) for c in plain}
     P = {c: candidate_points_cam_m(cam, candidates[c]) for c in plain}
-    tol = {c: _tolerances(candidates[c], False) for c in plain}
-    T = _rigid_fit(np.array([X[c] for c in plain]), np.array([P[c][0] for c in plain]))
-    if T is None or len(_single_inliers(T, plain, X, P, tol)) != 3:
+    tol = {c: candidate_tolerances(candidates[c], False) for c in plain}
+    T = rigid_fit(np.array([X[c] for c in plain]), np.array([P[c][0] for c in plain]))
+    if T is None or len(single_inliers(T, plain, X, P, tol)) != 3:
         return None
     out = Resolution(T_cam_sonar=T)
-    _agreement(out, cam, plain, X, P, tol, candidates)
-    _predict_places(out, cam, T, centers_sonar_m, [c for c in predict_for if c not in plain])
+    fill_agreement(out, cam, plain, X, P, tol, candidates)
+    predict_places(out, cam, T, centers_sonar_m, [c for c in predict_for if c not in plain])
     targets = {c: np.asarray(centers_sonar_m[c], float) for c in out.predicted_uvr}
-    out.sigma_px = _three_point_sigma_px(cam, T, plain, X, P, targets) if targets else {}
+    out.sigma_px = three_point_sigma_px(cam, T, plain, X, P, targets) if targets else {}
     return out

@@ -17,11 +17,11 @@ import numpy as np
 
 from calib_core.errors import SessionError
 
-_INTENSITY_NAMES = ("intensity", "intensities", "scalar_intensity", "reflectance")
+INTENSITY_NAMES = ("intensity", "intensities", "scalar_intensity", "reflectance")
 _HEAD_BYTES = 65536
 
 
-def _header_lines(path: Path, end_token: str) -> tuple[list[str], int]:
+def header_lines(path: Path, end_token: str) -> tuple[list[str], int]:
     """Header lines up to and including ``end_token``'s line, and the byte offset after it."""
     with open(path, "rb") as f:
         head = f.read(_HEAD_BYTES)
@@ -61,7 +61,7 @@ def _short(e: Exception) -> str:
 
 def read_ascii_ply(path: Path):
     """(points (N,3), intensity or None) from an ASCII PLY's vertex element."""
-    lines, offset = _header_lines(path, "end_header")
+    lines, offset = header_lines(path, "end_header")
     skip, vertex, props = 0, None, None
     elements: list[tuple[str, int, list]] = []
     for line in lines:
@@ -86,14 +86,14 @@ def read_ascii_ply(path: Path):
         raise SessionError(path, f"PLY vertices have no x y z properties ({' '.join(names)})")
     arr = _rows(path, offset, skip, vertex, len(names))
     cols = [names.index(c) for c in "xyz"]
-    inten = next((arr[:, names.index(k)] for k in _INTENSITY_NAMES if k in names), None)
+    inten = next((arr[:, names.index(k)] for k in INTENSITY_NAMES if k in names), None)
     return arr[:, cols], inten
 
 
 def pcd_header(path: Path) -> tuple[dict[str, list[str]], int]:
     """A PCD header as {KEYWORD: [values]} (FIELDS, SIZE, TYPE, COUNT, POINTS, DATA, ...) and the
     byte offset of the data after it."""
-    lines, offset = _header_lines(path, "DATA")
+    lines, offset = header_lines(path, "DATA")
     fields: dict[str, list[str]] = {}
     for line in lines:
         parts = line.split()
@@ -111,5 +111,5 @@ def read_ascii_pcd(path: Path):
     starts = np.concatenate([[0], np.cumsum(counts)[:-1]]).astype(int)
     arr = _rows(path, offset, 0, n, int(sum(counts)))
     col = {name: int(s) for name, s in zip(names, starts)}
-    inten = next((arr[:, col[k]] for k in _INTENSITY_NAMES if k in col), None)
+    inten = next((arr[:, col[k]] for k in INTENSITY_NAMES if k in col), None)
     return arr[:, [col["x"], col["y"], col["z"]]], inten

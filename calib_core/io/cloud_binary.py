@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from calib_core.errors import SessionError
-from calib_core.io.cloud_ascii import _INTENSITY_NAMES, _header_lines, pcd_header
+from calib_core.io.cloud_ascii import INTENSITY_NAMES, header_lines, pcd_header
 
 _PLY_TYPES = {"char": "i1", "int8": "i1", "uchar": "u1", "uint8": "u1", "short": "i2", "int16": "i2",
               "ushort": "u2", "uint16": "u2", "int": "i4", "int32": "i4", "uint": "u4", "uint32": "u4",
@@ -24,7 +24,7 @@ _PCD_KINDS = {"F": "f", "I": "i", "U": "u"}
 
 def read_binary_ply(path: Path):
     """(points, intensity or None) of a binary PLY's vertices, or None for open3d to read."""
-    lines, offset = _header_lines(path, "end_header")
+    lines, offset = header_lines(path, "end_header")
     order = ">" if any(ln.split()[:2] == ["format", "binary_big_endian"] for ln in lines) else "<"
     elements = _ply_layout(lines)
     skip = 0
@@ -89,7 +89,7 @@ def _rows(path: Path, offset: int, n: int, dtype: np.dtype) -> np.ndarray:
 def _fields(rows: np.ndarray, names: list[str]):
     pts = np.column_stack([rows[a].astype(np.float64).reshape(len(rows)) for a in ("x", "y", "z")])
     keys = {k.lower(): k for k in names}
-    inten = next((rows[keys[k]].astype(np.float64).reshape(-1) for k in _INTENSITY_NAMES if k in keys), None)
+    inten = next((rows[keys[k]].astype(np.float64).reshape(-1) for k in INTENSITY_NAMES if k in keys), None)
     return pts, inten
 
 

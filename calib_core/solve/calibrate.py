@@ -29,6 +29,7 @@ from calib_core.solve.scale import (diameter_sigma, outline_sigma_px, range_mode
 from calib_core.solve.shared_scale import shared_scale
 from calib_core.solve.rig import find_stereo, solve_rig, table_i
 from calib_core.solve.stereo_cov import assumed_stereo_text, stereo_link
+from calib_core.solve.stereo_factor import stereo_factor_phrase
 from calib_core.solve.single import CameraSolution, solve_camera
 
 
@@ -163,20 +164,23 @@ def _joint(session, sols, entries, opts, progress, warnings):
         progress(len(solved), len(solved) + 1, "joint solve")
     rs = solve_rig(sols, links, ref, estimate_scale=opts.estimate_scale, robust=opts.robust)
     warnings += rs.warnings
-    if any(v["covariance_assumed"] for v in stereo_info.values()):
+    assumed = any(v["covariance_assumed"] for v in stereo_info.values())
+    if assumed:
         warnings.append(f"joint solve: no stereo_covariance in session.yaml; {assumed_stereo_text()}")
+    if stereo_factor_phrase(rs.stereo_factor, assumed):
+        warnings.append(stereo_factor_phrase(rs.stereo_factor, assumed))
     cons = consistency(rs.chi2, rs.dof, "joint solve")
     joint = {"reference": ref, "cameras": rs.cameras, "stereo": stereo_info,
              "T_cam_ref_solved": rs.T_cam_ref, "rms_reprojection_px": rs.rms_px, "chi2": rs.chi2, "dof": rs.dof,
-             "variance_factor": rs.variance_factor, "consistency": cons, "mahalanobis": rs.mahalanobis}
+             "variance_factor": rs.variance_factor, "consistency": cons, "mahalanobis": rs.mahalanobis,
+             "stereo_variance_factor": rs.stereo_factor}
     for c in rs.cameras:
         entries[c].update({"T_cam_sonar": rs.T_cam_sonar[c], "covariance": rs.cov[c], "solution": "joint",
                            "rms_reprojection_px": rs.rms_px[c], "consistency": cons, **sigmas(rs.cov[c])})
         if c in rs.cov_with_scale:
             entries[c]["covariance_with_scale"] = rs.cov_with_scale[c]
     source = f"joint solve of {' + '.join(rs.cameras)} with the stereo transform"
-    limit = stereo_limit_note(rs.scale_sigma, rs.scale_sigma_detections,
-                              any(v["covariance_assumed"] for v in stereo_info.values()))
+    limit = stereo_limit_note(rs.scale_sigma, rs.scale_sigma_detections, assumed)
     scale = _scale_entry(rs.scale, rs.scale_sigma, rs.scale_sigma is not None, source, rs.scale_note + limit,
                          rs.scale_observable, rs.scale_test)
     return joint, scale

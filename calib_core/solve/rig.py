@@ -27,6 +27,7 @@ from calib_core.solve.refine import (Link, RigProblem, covariance_from_jacobian,
                                      weights_for)
 from calib_core.solve.systematic import systematic_term
 from calib_core.solve.scale import choose_scale, scale_mode
+from calib_core.solve.stereo_factor import stereo_factor, widened
 from calib_core.solve.single import CameraSolution
 # (the assumed stereo covariance lives with the stated one: the stereo vouching of detections uses it too,
 # so it is part of the detector fingerprint; re-exported here for the solver's callers)
@@ -71,6 +72,7 @@ class RigSolution:
     scale_observable: bool = False
     scale_test: dict | None = None
     scale_sigma_detections: float | None = None  # the scale's sigma were the stereo transforms exact
+    stereo_factor: dict = field(default_factory=dict)  # the stereo block's variance factor (stereo_factor.py)
 
 
 def solve_rig(solutions: dict[str, CameraSolution], links: dict[str, Link], reference: str,
@@ -87,7 +89,16 @@ def solve_rig(solutions: dict[str, CameraSolution], links: dict[str, Link], refe
     res = refine(prob, state, robust=robust)
     warnings: list[str] = []
     prob_s = RigProblem(cams, masks, {n: links[n] for n in names[1:]}, estimate_scale=True)
-    ch = choose_scale(prob, res, prob_s, scale_mode(estimate_scale), robust)
+    # the stereo block judged by the data (calib_core.solve.stereo_factor): widened when worse than stated
+    factor, s_info, prob_s, res_s = stereo_factor(prob_s, res.state, robust)
+    if factor > 1.0:
+        prob = widened(prob, factor)
+        res = refine(prob, res.state, robust=robust)
+    # the scale's share of the model errors common to all captures (systematic.py: a sonar range
+    # offset, a shading offset of the image centres) is not evidence of a scale error: the test
+    # counts only the deviation beyond it, as the reported sigma includes it
+    sys_var = float(systematic_term(prob_s, res_s.state, robust)[-1, -1])
+    ch = choose_scale(prob, res, prob_s, scale_mode(estimate_scale), robust, sys_var, res_free=res_s)
     res, prob = ch.res, ch.problem
     note = ch.note
     vf = res.variance_factor if res.dof > 0 else 1.0
@@ -107,7 +118,7 @@ def solve_rig(solutions: dict[str, CameraSolution], links: dict[str, Link], refe
         rms[n] = float(np.sqrt(np.mean(np.sum(r_px[m] ** 2, axis=1))))
         mah[n] = {cid: float(math.sqrt(v)) if math.isfinite(v) else math.inf for cid, v in zip(cd.capture_ids, m2)}
     return RigSolution(reference, names, Ts, covs, dict(res.state.T_cam_ref), res.state.scale, scale_sigma, note,
-                       rms, res.chi2, res.dof, vf, mah, warnings, covs7, ch.observable, ch.test, sigma_det)
+                       rms, res.chi2, res.dof, vf, mah, warnings, covs7, ch.observable, ch.test, sigma_det, s_info)
 
 
 def stereo_share_of_scale(problem: RigProblem, state: RigState, robust: str | None = None) -> float:

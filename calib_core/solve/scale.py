@@ -181,14 +181,17 @@ def lr_test(res_fixed: RefineResult, res_free: RefineResult, systematic_var: flo
 
 
 def choose_scale(prob_fixed: RigProblem, res_fixed: RefineResult, prob_free: RigProblem, mode: str,
-                 robust: str | None = None, systematic_var: float = 0.0) -> ScaleChoice:
-    """Fit the scaled model when observable and pick between the two (see the module doc)."""
+                 robust: str | None = None, systematic_var: float = 0.0,
+                 res_free: RefineResult | None = None) -> ScaleChoice:
+    """Fit the scaled model when observable and pick between the two (see the module doc);
+    ``res_free``: that fit when the caller has it already."""
     if mode == "never":
         return ScaleChoice(res_fixed, prob_fixed, False, False, "held at 1 (--no-scale)", None)
     ok, _, why = scale_observability(prob_free, res_fixed.state)
     if not ok:
         return ScaleChoice(res_fixed, prob_fixed, False, False, why, None)
-    res_free = refine(prob_free, res_fixed.state, robust=robust)
+    if res_free is None:
+        res_free = refine(prob_free, res_fixed.state, robust=robust)
     test = lr_test(res_fixed, res_free, systematic_var)
     sig = math.sqrt(res_free.cov[-1, -1] * max(1.0, res_free.variance_factor) + systematic_var)
     est = f"{res_free.state.scale:.5f} ± {sig:.5f}"

@@ -62,7 +62,7 @@ def registration_cov(T_a_sonar: np.ndarray, support_sonar_m: np.ndarray, sigma_l
     """6x6 covariance (left rotation vector, additive translation) of the rigid registration
     ``T_a_sonar`` fitted to the sphere centres ``support_sonar_m`` (N,3), each seen by ``a`` with
     ``sigma_lat_px`` across its ray and RANGE_REL_SIGMA of its range along it. The registration is
-    an unweighted 3D fit (:func:`calib_core.disambiguate.image._rigid_fit`, Kabsch), so the covariance is
+    an unweighted 3D fit (:func:`calib_core.disambiguate.image.rigid_fit`, Kabsch), so the covariance is
     that estimator's (the sandwich H^-1 M H^-1), not the weighted optimum's."""
     H, M = np.zeros((6, 6)), np.zeros((6, 6))
     for X in np.asarray(support_sonar_m, float).reshape(-1, 3):

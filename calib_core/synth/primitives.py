@@ -39,7 +39,7 @@ def _unit(v) -> np.ndarray:
     return v / np.linalg.norm(v)
 
 
-def _frame_from_normal(n) -> np.ndarray:
+def frame_from_normal(n) -> np.ndarray:
     """3x3 with columns (u, v, n) for a unit normal n."""
     n = _unit(n)
     a = np.array([1.0, 0, 0]) if abs(n[0]) < 0.9 else np.array([0, 1.0, 0])
@@ -48,15 +48,15 @@ def _frame_from_normal(n) -> np.ndarray:
     return np.column_stack([u, np.cross(n, u), n])
 
 
-def _dot(a, b):
+def rowwise_dot(a, b):
     return np.einsum("ij,ij->i", a, b)
 
 
 def _sphere_roots(o, d, c, r):
     """Both ray parameters of a sphere hit (t1 <= t2), NaN where the ray misses."""
     oc = o - c
-    b = _dot(oc, d)
-    cc = _dot(oc, oc) - r * r
+    b = rowwise_dot(oc, d)
+    cc = rowwise_dot(oc, oc) - r * r
     disc = b * b - cc
     with np.errstate(invalid="ignore"):
         s = np.sqrt(disc)
@@ -111,7 +111,7 @@ class MeshSphere:
 
     def _on_wire(self, p):
         """Boolean: sphere-relative points p (M,3) lie on a wire band."""
-        R = _frame_from_normal(self.pole)
+        R = frame_from_normal(self.pole)
         q = p @ R  # local coords, z = pole
         rho = np.linalg.norm(q, axis=1)
         theta = np.arccos(np.clip(q[:, 2] / np.maximum(rho, 1e-12), -1, 1))
@@ -187,7 +187,7 @@ def _disc(o, d, c, n, r):
     with np.errstate(divide="ignore", invalid="ignore"):
         t = ((c - o) @ n) / dn
     p = o + d * np.where(np.isfinite(t), t, 0)[:, None] - c
-    ok = np.isfinite(t) & (t > T_MIN) & (_dot(p, p) <= r * r)
+    ok = np.isfinite(t) & (t > T_MIN) & (rowwise_dot(p, p) <= r * r)
     t = np.where(ok, t, INF)
     return t, np.broadcast_to(n, o.shape).copy()
 
@@ -198,9 +198,9 @@ def _cylinder_side(o, d, p0, axis, length, r):
     oa = oc @ axis
     dp = d - da[:, None] * axis
     op = oc - oa[:, None] * axis
-    A = _dot(dp, dp)
-    B = 2 * _dot(dp, op)
-    C = _dot(op, op) - r * r
+    A = rowwise_dot(dp, dp)
+    B = 2 * rowwise_dot(dp, op)
+    C = rowwise_dot(op, op) - r * r
     disc = B * B - 4 * A * C
     with np.errstate(invalid="ignore", divide="ignore"):
         s = np.sqrt(disc)
@@ -333,7 +333,7 @@ class Rect:
         n = _unit(self.normal)
         u = _vec(self.u) - (_vec(self.u) @ n) * n
         if np.linalg.norm(u) < 1e-9:
-            u = _frame_from_normal(n)[:, 0]
+            u = frame_from_normal(n)[:, 0]
         u = u / np.linalg.norm(u)
         v = np.cross(n, u)
         c = _vec(self.center_m)
@@ -373,8 +373,8 @@ class Group:
         n = np.zeros((len(o), 3))
         for m, (c, R) in zip(self.members, self._member_bounds):
             oc = o - c
-            b = _dot(oc, d)
-            idx = np.nonzero(_dot(oc, oc) - b * b <= R * R)[0]
+            b = rowwise_dot(oc, d)
+            idx = np.nonzero(rowwise_dot(oc, oc) - b * b <= R * R)[0]
             if idx.size == 0:
                 continue
             tm, nm = m.intersect(o[idx], d[idx], acoustic)

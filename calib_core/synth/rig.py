@@ -77,7 +77,7 @@ def _rot(yaw_deg, pitch_deg, roll_deg) -> np.ndarray:
     return Rotation.from_euler("ZYX", [yaw_deg, pitch_deg, roll_deg], degrees=True).as_matrix()
 
 
-def _camera_pose(rng, eye, target, roll_sigma_deg=2.0) -> np.ndarray:
+def look_at_pose(rng, eye, target, roll_sigma_deg=2.0) -> np.ndarray:
     """T_world_cam of an OpenCV camera at ``eye`` looking at ``target`` with a random roll."""
     T_cam_world = look_at_T_cam_world(eye, target)
     roll = Rotation.from_rotvec([0, 0, np.deg2rad(rng.normal(0, roll_sigma_deg))]).as_matrix()
@@ -126,7 +126,7 @@ def sample_rig(rng: np.random.Generator, n_cameras: int, width_px: int, height_p
             if 0.3 <= np.linalg.norm(eye) <= 1.0:
                 break
         target = np.array([rng.uniform(2.0, 4.0), rng.uniform(-0.6, 0.6), eye[2] + rng.uniform(-0.3, 0.5)])
-        rig.cams["cam1"] = (_sample_lens(rng, width_px, height_px, "cam1", scale, lens), _camera_pose(rng, eye, target))
+        rig.cams["cam1"] = (_sample_lens(rng, width_px, height_px, "cam1", scale, lens), look_at_pose(rng, eye, target))
         return rig
     b = rng.uniform(0.68, 0.80)
     h = np.sqrt(max(0.86**2 - (b / 2) ** 2, 0.1)) + rng.uniform(-0.05, 0.05)
@@ -135,11 +135,11 @@ def sample_rig(rng: np.random.Generator, n_cameras: int, width_px: int, height_p
     for name, side in (("cam1", 1.0), ("cam2", -1.0)):
         eye = np.array([dx + rng.normal(0, 0.01), side * b / 2, -h + rng.normal(0, 0.01)])
         target = look + rng.normal(0, 0.15, 3)
-        rig.cams[name] = (_sample_lens(rng, width_px, height_px, name, scale, lens), _camera_pose(rng, eye, target))
+        rig.cams[name] = (_sample_lens(rng, width_px, height_px, name, scale, lens), look_at_pose(rng, eye, target))
     if n_cameras == 3:  # a third camera above the middle of the stereo pair (drawn last: pairs unchanged)
         eye = np.array([dx + rng.normal(0, 0.02), rng.normal(0, 0.05), -h + rng.uniform(0.25, 0.45)])
         rig.cams["cam3"] = (_sample_lens(rng, width_px, height_px, "cam3", scale, lens),
-                            _camera_pose(rng, eye, look + rng.normal(0, 0.15, 3)))
+                            look_at_pose(rng, eye, look + rng.normal(0, 0.15, 3)))
     return rig
 
 

@@ -28,7 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from calib_core.synth.primitives import (INF, T_MIN, Box, Capsule, Cylinder, Disc, Group, Material,  # noqa: F401
-                                         MeshSphere, Rect, Sphere, _dot)
+                                         MeshSphere, Rect, Sphere, rowwise_dot)
 
 __all__ = ["Box", "Capsule", "Cylinder", "Disc", "Group", "Material", "MeshSphere", "Rect", "Scene", "Sphere",
            "T_MIN", "raycast"]
@@ -67,8 +67,8 @@ def _candidate_rays(bound, o: np.ndarray, single: bool, d: np.ndarray, best: np.
         b = d @ oc
         dist2 = oc @ oc - b * b
     else:
-        b = _dot(oc, d)
-        dist2 = _dot(oc, oc) - b * b
+        b = rowwise_dot(oc, d)
+        dist2 = rowwise_dot(oc, oc) - b * b
     return np.nonzero((dist2 <= R * R) & (-b - R < best) & (-b + R > 0))[0]
 
 

@@ -29,11 +29,15 @@ import cv2
 import numpy as np
 
 from calib_core.camera import CameraModel
-from calib_core.detect.image.blur import blur_range_floor_m, clean_rms_px
-from calib_core.detect.image.fit import TIGHT_MIN_SUPPORT, TIGHT_RMS_FRACTION, CandidateFit, refine_candidate
+from calib_core.detect.image.blur import SMALL_RADIUS_PX, blur_range_floor_m, clean_rms_px
+from calib_core.detect.image.fit import (MIN_EDGE_WIDTH_PX, TIGHT_MIN_SUPPORT, TIGHT_RMS_FRACTION, CandidateFit,
+                                        refine_candidate)
+from calib_core.detect.image.closing import closed_candidates, view_of
 from calib_core.detect.image.discs import candidates_by_discs
 from calib_core.detect.image.highlight import host_candidates, is_clipped_spot
 from calib_core.detect.image.hough import hough_circle
+from calib_core.detect.image.mirror import MirrorEvidence, noise_sigma_dn
+from calib_core.detect.image.mirror import compare as mirror_compare
 from calib_core.detect.image.pattern import MIN_GROWTH, enclosing_candidates, in_a_print, is_body, lies_inside
 from calib_core.detect.image.apparent_range import cone_range_sigma_m, outline_range_floor_m
 from calib_core.detect.image.score import features, probability
@@ -241,6 +245,86 @@ def _refine_all(look, todo, hinted: bool):
     return fits
 
 
+@dataclass(frozen=True)
+class _Copy:
+    copy: CandidateFit  # the farther outline: the mirror image
+    ball: CandidateFit  # the nearer one it copies
+    evidence: MirrorEvidence
+
+
+def _mirror_input(f: CandidateFit, sphere_radius_m: float) -> dict:
+    return {"centre_px": f.centre_uv_px, "radius_px": _mean_radius(f.silhouette_px), "range_m": float(f.range_m),
+            "range_sigma_m": _range_sigma_m(f, sphere_radius_m)}
+
+
+def _without_mirror_copies(look, good):
+    """The accepted outlines without those that are a mirror copy of a nearer one
+    (:mod:`.mirror`), and the copies found. Only outlines that would make the image ambiguous
+    (evidence at least half the best's) are compared."""
+    top = [f for _, f in good[:3] if f.fit is not None and _evidence(f) >= 0.5 * _evidence(good[0][1])]
+    if len(top) < 2:
+        return good, []
+    copies: list[_Copy] = []
+    for far in sorted(top, key=lambda f: -f.range_m):
+        for near in sorted(top, key=lambda f: f.range_m):
+            k = None if any(near is k.copy for k in copies) else _mirror_copy_of(look, far, near)
+            if k is not None:
+                copies.append(k)
+                break
+    return [(c, f) for c, f in good if not any(f is k.copy for k in copies)], copies
+
+
+def _set_aside_copies(look, good, fits):
+    """(accepted outlines, all fits, copies) without the outlines that are a mirror copy of a
+    nearer accepted one, nor a copy cut by the border that would block the ball
+    (:func:`_stronger_refused`); the copies' other fits go too (they are no rivals)."""
+    good, copies = _without_mirror_copies(look, good)
+    fits = [(c, f) for c, f in fits if not any(_same_object(f, k.copy) for k in copies)]
+    blocker = _stronger_refused(fits, good[0][1])
+    cut_copy = None if blocker is None else _mirror_copy_of(look, blocker, good[0][1])
+    if cut_copy is not None:
+        copies.append(cut_copy)
+        fits = [(c, f) for c, f in fits if not _same_object(f, blocker)]
+    return good, fits, copies
+
+
+def _same_object(f: CandidateFit, g: CandidateFit) -> bool:
+    """``f`` is ``g`` or another fit of the same outline (centre within half its radius)."""
+    if f is g:
+        return True
+    if f.centre_uv_px is None or g.silhouette_px is None:
+        return False
+    return bool(np.hypot(*(f.centre_uv_px - g.centre_uv_px)) < 0.5 * _mean_radius(g.silhouette_px))
+
+
+def _mirror_copy_of(look, far: CandidateFit, near: CandidateFit) -> _Copy | None:
+    """``far`` as the mirror copy of ``near`` (:mod:`.mirror`), or None."""
+    if far.fit is None or near.fit is None or far.range_m is None or near.range_m >= far.range_m:
+        return None
+    if look.noise_dn is None:
+        look.noise_dn = noise_sigma_dn(look.img)
+    ev = mirror_compare(look.img, _mirror_input(near, look.radius_m), _mirror_input(far, look.radius_m),
+                        look.noise_dn)
+    return _Copy(far, near, ev) if ev.is_pair() else None
+
+
+def _name_copies(det: ImageDetection, copies) -> None:
+    """The detection's record names the mirror copies it set aside ("mirror copy at (u, v)")."""
+    found = [k for k in copies if k.ball.centre_uv_px is not None
+             and np.allclose(k.ball.centre_uv_px, det.center_uv_px)]
+    if not found:
+        return
+    k = found[0]
+    u, v = k.copy.centre_uv_px
+    det.extras["mirror_copy"] = f"mirror copy at ({u:.0f}, {v:.0f})"
+    det.extras["mirror_copy_uv_px"] = [round(float(u), 2), round(float(v), 2)]
+    ev = k.evidence
+    det.extras["mirror_evidence"] = {"flip_corr": round(ev.flip_corr, 3), "direct_corr": round(ev.direct_corr, 3),
+                                     "colour_cos": round(ev.colour_cos, 4),
+                                     "brightness_ratio": round(ev.brightness_ratio, 3),
+                                     "range_sigmas": round(ev.range_sigmas, 1)}
+
+
 # a clean, confident outline whose round-outline vote is this many times another candidate's
 # is not made ambiguous by it (see _dominated)
 DOMINANT_VOTE_RATIO = 2.0
@@ -299,6 +383,8 @@ def _hint_candidates(cands, hint_uv, hint_r, r_bounds):
 # hidden: clutter makes those (chair legs, tiles); the second cue then looks as well
 WEAK_FIT = 0.5
 DISC_CANDIDATES = 6  # colour-distance disc candidates refined when the other cues found nothing
+CLOSED_CANDIDATES = 3  # per view (closed, opened) in the see-through cue
+CLOSED_MIN_FIT = 0.7  # the fit score (outline share x roundness) a see-through cue's outline needs
 VOTE_CANDIDATES = 8  # round-outline vote peaks refined (clutter outranks a faint large outline often)
 FAINT_CONTRAST = 10.0  # grey levels: a background-difference outline this faint gets a second look
 
@@ -408,7 +494,40 @@ def _more_cues(look, cands, fits):
     fits = fits + _refine_all(look, more[:DISC_CANDIDATES], False)  # best first, border or not
     if _clear(fits) and not _clear_in_print(look, cands, fits):
         return cands, fits
-    return _print_cue(look, cands, fits)
+    cands, fits = _print_cue(look, cands, fits)
+    return (cands, fits) if _clear(fits) else _closed_cue(look, cands, fits)
+
+
+def _closed_cue(look, cands, fits):
+    """Fifth cue, when nothing else gave a clear outline: a see-through ball (lattice, cage,
+    net, wiffle) looked for on the image closed at its mesh cell's scale (:mod:`.closing`).
+    It counts only when it gives a clear outline; each candidate draws from its own random
+    stream (the shared one is left as it was: what draws after it draws as without the cue)."""
+    # (not where the image itself gave an accepted, if weak, outline: closing makes any dark or
+    # bright blob rounder, and there it would only outbid the raw outline; a half-buried boulder
+    # at 0.73 went to 1.00)
+    accepted = [f for _, f in fits if f.ok]
+    more = [c for c in look.closed_candidates() if not c.touches_border and not _near_accepted(c, accepted)]
+    fifth = [(c, look.refine_closed(c)) for c in more]
+    if any(_closed_clear(f) for _, f in fifth):
+        return cands + more, fits + fifth
+    return cands, fits
+
+
+def _closed_clear(f: CandidateFit) -> bool:
+    """A see-through cue's outline that counts: a guess on a transformed image, so clearer than
+    the weak fit that would do on the raw image (CLOSED_MIN_FIT; a blob of a dim wall, closed,
+    made one at 0.50), no smaller than the smallest sphere the detector is meant for
+    (SMALL_RADIUS_PX: a mesh needs a few cells to be seen as one) and on edges that are steps
+    (MIN_EDGE_WIDTH_PX, as fit._outline_held: a 13 px blob of a chair scene, closed, had 2.0 px)."""
+    return (f.ok and f.score >= CLOSED_MIN_FIT and _mean_radius(f.silhouette_px) >= SMALL_RADIUS_PX
+            and f.extras.get("edge_width_px", 0.0) >= MIN_EDGE_WIDTH_PX)
+
+
+def _near_accepted(c: Candidate, accepted) -> bool:
+    """A candidate at an accepted outline, of about its size."""
+    return any(np.hypot(*(c.centre_px - f.centre_uv_px)) < 0.5 * _mean_radius(f.silhouette_px)
+               and 0.6 < c.radius_px / _mean_radius(f.silhouette_px) < 1.6 for f in accepted)
 
 
 def _clear_in_print(look, cands, fits) -> bool:
@@ -458,6 +577,7 @@ class _Look:
         self.background = background
         self.bg = background.image if background is not None else None
         self.max_candidates = max_candidates or (6 if background is not None else 10)
+        self.noise_dn = None  # the image noise (grey levels), measured when a mirror pair is compared
 
     def first_candidates(self, hint_uv_px) -> list[Candidate]:
         """Background-difference blobs, else round-outline votes, else region contrast."""
@@ -479,6 +599,14 @@ class _Look:
 
     def refine(self, c: Candidate) -> CandidateFit:
         return refine_candidate(self.img, self.cam, c, self.radius_m, self.a_range, self.bg, self.rng)
+
+    def closed_candidates(self) -> list[Candidate]:
+        return closed_candidates(self.small, self.s, self.r_bounds, CLOSED_CANDIDATES)
+
+    def refine_closed(self, c: Candidate) -> CandidateFit:
+        """A see-through cue's candidate refined on its closed view, from its own random stream."""
+        return refine_candidate(view_of(self.img, c), self.cam, c, self.radius_m, self.a_range, None,
+                                np.random.default_rng(0))
 
 
 def _host_of_highlight(look, det: ImageDetection, method: str) -> ImageDetection:
@@ -566,6 +694,8 @@ def _verdict(look, fits, cands, method, hinted: bool) -> ImageDetection:
     good = _good_fits(fits)
     if not good:
         return _refusal(fits, cands, method)
+    # a mirror copy (glass wall, water surface) is no second object: the ball is the nearer
+    good, fits, copies = (good, fits, []) if hinted else _set_aside_copies(look, good, fits)
     # a clean round outline refused only for being cut by the border (or partly hidden) that
     # outweighs the best accepted one: the accepted one is likely clutter, the sphere is there
     blocker = _stronger_refused(fits, good[0][1])
@@ -596,6 +726,8 @@ def _verdict(look, fits, cands, method, hinted: bool) -> ImageDetection:
     runner_up = _evidence(good[1][1]) / max(_evidence(f), 1e-9) if len(good) > 1 else 0.0
     det = _detection(f, look.radius_m, method, len(cands), runner_up)
     det.extras["rival_share"] = round(_rival_share(fits, f), 4)
+    if copies:
+        _name_copies(det, copies)
     if method == "hough-circle":
         h = hough_circle(look.img, f.centre_uv_px, det.radius_px)
         if h is None:
@@ -668,6 +800,16 @@ def _blur_range_floor_m(f: CandidateFit, apparent_r_px: float, sphere_radius_m: 
     return blur_range_floor_m(sphere_radius_m / np.sin(f.fit.a_rad), apparent_r_px, width)
 
 
+def _range_sigma_m(f: CandidateFit, sphere_radius_m: float) -> float:
+    """Uncertainty (m) of an accepted outline's cone range: the fit's, the blur's floor and the
+    outline's roughness floor, combined."""
+    apparent_r = _mean_radius(f.silhouette_px)
+    range_m = sphere_radius_m / np.sin(f.fit.a_rad)
+    return float(np.linalg.norm([cone_range_sigma_m(sphere_radius_m, f.fit.a_rad, f.fit.cov_params[2, 2]),
+                                 _blur_range_floor_m(f, apparent_r, sphere_radius_m),
+                                 outline_range_floor_m(range_m, apparent_r, float(f.fit.sigma_px))]))
+
+
 def _detection(f: CandidateFit, sphere_radius_m: float, method: str, n_cands: int,
                runner_up: float) -> ImageDetection:
     """The found detection of an accepted outline, with its score and extras."""
@@ -675,11 +817,7 @@ def _detection(f: CandidateFit, sphere_radius_m: float, method: str, n_cands: in
     extras["candidates"] = n_cands
     extras["runner_up_ratio"] = round(runner_up, 4)
     apparent_r = _mean_radius(f.silhouette_px)
-    range_m = sphere_radius_m / np.sin(f.fit.a_rad)
-    rng_sigma = float(np.linalg.norm([cone_range_sigma_m(sphere_radius_m, f.fit.a_rad, f.fit.cov_params[2, 2]),
-                                      _blur_range_floor_m(f, apparent_r, sphere_radius_m),
-                                      outline_range_floor_m(range_m, apparent_r, float(f.fit.sigma_px))]))
-    extras["range_sigma_m"] = round(rng_sigma, 5)
+    extras["range_sigma_m"] = round(_range_sigma_m(f, sphere_radius_m), 5)
     # the cone's half-angle is what the camera measures; range_m = radius / sin(angle), so a
     # wrong diameter in session.yaml shows up as a range that disagrees with the sonar's
     extras["angular_radius_deg"] = round(float(np.degrees(f.fit.a_rad)), 5)

@@ -24,7 +24,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from calib_core.detect.image.region import (Candidate, _box_sum, _counts, disc_boxes, downscale, level_peaks, non_maximum,
+from calib_core.detect.image.region import (Candidate, box_sum, window_counts, disc_boxes, downscale, level_peaks, non_maximum,
                                            radius_ladder)
 
 NOISE_VAR = 25.0  # (Lab units)^2: a spread under ~5 units is image noise, not texture
@@ -47,7 +47,7 @@ def _level_stats(lab: np.ndarray, levels: int) -> list[tuple[list[np.ndarray], n
 def _padded_box_sums(arrays, kx: int, ky: int, pad: int) -> list[np.ndarray]:
     """Box sums (zero outside the image) of each array, zero-padded by ``pad`` on every side:
     a shifted copy is then a view (see :func:`_at`)."""
-    return [cv2.copyMakeBorder(_box_sum(a, kx, ky), pad, pad, pad, pad, cv2.BORDER_CONSTANT, value=0)
+    return [cv2.copyMakeBorder(box_sum(a, kx, ky), pad, pad, pad, pad, cv2.BORDER_CONSTANT, value=0)
             for a in arrays]
 
 
@@ -66,15 +66,15 @@ def disc_response(planes: list[np.ndarray], sq: np.ndarray, R: float) -> np.ndar
     """
     h, w = planes[0].shape
     hi, hx, off = disc_boxes(R)
-    n_in = np.outer(_counts(h, hi), _counts(w, hi))
-    m_in = [_box_sum(p, hi, hi) / n_in for p in planes]
-    v_in = np.maximum(_box_sum(sq, hi, hi) / n_in - sum(m * m for m in m_in), 0.0)
+    n_in = np.outer(window_counts(h, hi), window_counts(w, hi))
+    m_in = [box_sum(p, hi, hi) / n_in for p in planes]
+    v_in = np.maximum(box_sum(sq, hi, hi) / n_in - sum(m * m for m in m_in), 0.0)
     D = np.full((h, w), np.inf, np.float32)
     n_sides = np.zeros((h, w), np.int32)
     diag = int(round(off / np.sqrt(2.0)))
     for kx, ky, shifts in ((hx, hi, ((-off, 0), (off, 0))), (hi, hx, ((0, -off), (0, off))),
                            (hx, hx, ((-diag, -diag), (diag, -diag), (-diag, diag), (diag, diag)))):
-        N = np.outer(_counts(h, ky), _counts(w, kx))
+        N = np.outer(window_counts(h, ky), window_counts(w, kx))
         *S, Q, Np = _padded_box_sums(planes + [sq], kx, ky, off) + [
             cv2.copyMakeBorder(N, off, off, off, off, cv2.BORDER_CONSTANT, value=0)]
         full = (2 * kx + 1) * (2 * ky + 1)

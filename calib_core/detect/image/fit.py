@@ -39,6 +39,17 @@ SMOOTH_SIGMA_PX = 1.0
 EDGE_SPACING_PX = 2.0
 CORR_LENGTH_PX = 2.25
 SYS_FRACTION = 0.2
+# A located edge moves by a fraction of its own width (FWHM of the gradient) where the limb's
+# profile is lopsided: shading across the sphere, the renderer's or the lens's anti-aliasing, the
+# background's brightness changing along the outline. The shift changes slowly along the outline,
+# so it does not average out over the edge points: a floor per axis of EDGE_WIDTH_FRACTION x the
+# edge width. Measured against the truth on every preset at seed 41 (191 right image centres,
+# benchmarks/bench_centre_z2.py, BENCHMARKS.md "Twenty-fourth round"): without it the mean z^2
+# per dof was 1.1-1.6 per radius bin (5.6 for 60-80 px); 0.01 x the width brings it to 0.7-1.0
+# (4.0 for 60-80 px: one side-lit scene, canal, whose shading offset is shared by its captures:
+# the pose covariance's systematic image offset, solve/systematic.py, carries that). It scales
+# with the image's resolution, as the width does.
+EDGE_WIDTH_FRACTION = 0.01
 # Acceptance: at least MIN_SUPPORT of the outline on the fitted cone (about half may be hidden
 # by a holder, a hand or low contrast), and an edge RMS a round outline of real (JPEG, blurred)
 # photographs reaches: sub-pixel edges of a sharp outline scatter ~0.3-0.7 px.
@@ -174,7 +185,8 @@ def refine_candidate(image: np.ndarray, cam: CameraModel, cand: Candidate, spher
     H, W = image.shape[:2]
     R = max(cand.axes_px[0], cand.radius_px)
     # the contrast detector's radius is good to ~30 %, the background blob's to ~10 %
-    band = (-0.45, 0.8) if cand.source in ("contrast", "hint", "votes") else (-0.45, 0.5)
+    band = (-0.45, 0.8) if cand.source in ("contrast", "hint", "votes") or cand.source.startswith("closed") \
+        else (-0.45, 0.5)
     m = int(np.ceil((1.1 + band[1]) * R + 8))
     box = (max(0, int(cand.centre_px[0]) - m), max(0, int(cand.centre_px[1]) - m),
            min(W, int(cand.centre_px[0]) + m + 1), min(H, int(cand.centre_px[1]) + m + 1))
@@ -389,6 +401,21 @@ def _pass1_smoothed(cam, sig: _Signal, geo, a_range_rad, R: float) -> ConeFit | 
     return None
 
 
+def centre_floor_px2(edge_rms_px: float, radius_px: float, edge_width_px: float, blur_allowed: bool = True) -> float:
+    """Variance (px^2) per image axis that the whole outline shares, added to the cone fit's
+    centre covariance (which sees only the scatter of the edge points about the outline):
+    systematic outline deviations (ragged open-mesh envelope, shading, JPEG), SYS_FRACTION x the
+    edge RMS; a blurred outline's plateau (image.blur; only when ``blur_allowed``, a mostly
+    visible outline); and the lopsided limb, EDGE_WIDTH_FRACTION x the edge width (see above;
+    nothing when the width is unknown)."""
+    v = (SYS_FRACTION * edge_rms_px) ** 2
+    if blur_allowed:
+        v += blur_floor_px2(radius_px, edge_width_px)
+    if np.isfinite(edge_width_px) and edge_width_px > 0:
+        v += (EDGE_WIDTH_FRACTION * edge_width_px) ** 2
+    return float(v)
+
+
 def _fitted(cam, sig: _Signal, p2, R: float, sphere_radius_m: float) -> tuple[CandidateFit, float]:
     """The pass-2 fit as a candidate fit (centre, covariance, outline, support, score,
     contrast, range; extras), not yet judged; and the outline's outside mismatch."""
@@ -396,10 +423,6 @@ def _fitted(cam, sig: _Signal, p2, R: float, sphere_radius_m: float) -> tuple[Ca
     # the centre from the precision-weighted cone (:func:`_weighted_place`); the outline, its
     # judgement and the score from the equally weighted fit
     centre, cov = centre_uv_and_cov(cam, _weighted_place(cam, fit, edge_precision(s2[ok2]), R, k2))
-    # systematic outline deviations (ragged open-mesh envelope, shading, JPEG) do not average
-    # out over the edge points; a floor of SYS_FRACTION x the edge RMS per axis matched the
-    # errors over the synthetic benchmark presets (approximation)
-    cov = cov + (SYS_FRACTION * fit.sigma_px) ** 2 * np.eye(2)
     sil_f = silhouette_uv(cam, fit.w, fit.a_rad, n=k2)
     support = float(fit.inliers.sum()) / k2
     # peak gradient of a step c smoothed by a Gaussian is c / (sigma sqrt(2 pi)); optics blur ignored
@@ -410,10 +433,7 @@ def _fitted(cam, sig: _Signal, p2, R: float, sphere_radius_m: float) -> tuple[Ca
     limit = outline_rms_limit_px(R, width if support >= TIGHT_MIN_SUPPORT else np.nan)
     sigma_rel = fit.sigma_px * clean_rms_px(R) / limit
     score = float(np.clip(support, 0, 1) * np.exp(-max(0.0, sigma_rel - 0.3) / 0.7))
-    # a blurred outline's peak position on the plateau is the same smear for neighbouring
-    # normals: it does not average out over the outline, a systematic floor of its own
-    # (the allowance of outline_rms_limit_px, zero for a sharp edge)
-    cov = cov + blur_floor_px2(R, width if support >= TIGHT_MIN_SUPPORT else np.nan) * np.eye(2)
+    cov = cov + centre_floor_px2(fit.sigma_px, R, width, support >= TIGHT_MIN_SUPPORT) * np.eye(2)
     res = CandidateFit(True, "", fit, centre, cov, sil_f, support, score, contrast,
                        float(sphere_radius_m / np.sin(fit.a_rad)))
     res.extras = {"edge_points": int(ok2.sum()), "inliers": int(fit.inliers.sum()),

@@ -36,14 +36,14 @@ from scipy.ndimage import gaussian_filter1d
 
 from calib_core.camera import CameraModel
 from calib_core.detect.image import smear
-from calib_core.detect.image.blur import blur_floor_px2, blur_range_floor_m, is_blurred
+from calib_core.detect.image.blur import blur_range_floor_m, is_blurred
 from calib_core.detect.image.cone import (ConeFit, centre_uv_and_cov, normalize_near, orthonormal_basis,
                                           px_per_rad, rays_from_xy, silhouette_uv, silhouette_xy)
 from calib_core.detect.image.detect import CUT, NO_OUTLINE, prepare_background
 from calib_core.detect.image.apparent_range import cone_range_sigma_m, outline_range_floor_m
 from calib_core.detect.image.edges import edge_widths, gradient_magnitude, outward_normals
 from calib_core.detect.image.fit import (BLUR_MAX_RADIUS_FRACTION, BLUR_SCALES_PX, CORR_LENGTH_PX, EDGE_NOISE_FACTOR,
-                                         EDGE_SPACING_PX, SMALL_RADIUS_PX, SMOOTH_SIGMA_PX, SYS_FRACTION, _Signal,
+                                         EDGE_SPACING_PX, SMALL_RADIUS_PX, SMOOTH_SIGMA_PX, _Signal, centre_floor_px2,
                                          clean_rms_px)
 from calib_core.detect.reasons import OUTLINE_SEEN_KEY, RANGE_PRIOR_KEY
 from calib_core.detect.types import ImageDetection
@@ -366,7 +366,7 @@ def _verdict(cam, reading: _Reading, R: float, sphere_radius_m: float, uv_px) ->
         return _not_found(f"outline {100 * (1 - support):.0f} % hidden or too faint {WHERE} {where}", **extras)
     r_px = float(np.mean(np.linalg.norm(sil - sil.mean(axis=0), axis=1)))
     # a blurred outline's plateau: the free search's systematic floor (image.blur), same rule
-    cov = cov + ((SYS_FRACTION * fit.sigma_px) ** 2 + blur_floor_px2(r_px, reading.edge_width_px)) * np.eye(2)
+    cov = cov + centre_floor_px2(fit.sigma_px, r_px, reading.edge_width_px) * np.eye(2)
     range_m = float(sphere_radius_m / np.sin(fit.a_rad))
     rng_sigma = float(np.linalg.norm([cone_range_sigma_m(sphere_radius_m, fit.a_rad, fit.cov_params[2, 2]),
                                       blur_range_floor_m(range_m, r_px, reading.edge_width_px),

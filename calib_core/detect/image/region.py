@@ -229,7 +229,7 @@ def non_maximum(peaks, s: int, shape, max_candidates: int, source: str, min_sep:
     return out
 
 
-def _box_sum(a: np.ndarray, half_x: int, half_y: int) -> np.ndarray:
+def box_sum(a: np.ndarray, half_x: int, half_y: int) -> np.ndarray:
     return cv2.boxFilter(a, -1, (2 * half_x + 1, 2 * half_y + 1), normalize=False,
                          borderType=cv2.BORDER_CONSTANT)
 
@@ -244,7 +244,7 @@ def _shift(a: np.ndarray, dx: int, dy: int) -> np.ndarray:
     return out
 
 
-def _counts(n: int, half: int) -> np.ndarray:
+def window_counts(n: int, half: int) -> np.ndarray:
     """In-image samples of a 1D window [i-half, i+half] at each i (zero outside)."""
     i = np.arange(n)
     return (np.minimum(i + half, n - 1) - np.maximum(i - half, 0) + 1).astype(np.float32)
@@ -261,14 +261,14 @@ def _centre_surround(planes: list[np.ndarray], R: float) -> np.ndarray:
     """
     h, w = planes[0].shape
     hi, hx, off = disc_boxes(R)
-    n_in = np.outer(_counts(h, hi), _counts(w, hi))
-    m_in = [_box_sum(p, hi, hi) / n_in for p in planes]
+    n_in = np.outer(window_counts(h, hi), window_counts(w, hi))
+    m_in = [box_sum(p, hi, hi) / n_in for p in planes]
     C = np.full((h, w), np.inf, np.float32)
     n_sides = np.zeros((h, w), np.int32)
     full = (2 * hx + 1) * (2 * hi + 1)
     for (kx, ky) in ((hx, hi), (hi, hx)):
-        N = np.outer(_counts(h, ky), _counts(w, kx))
-        S = [_box_sum(p, kx, ky) for p in planes]
+        N = np.outer(window_counts(h, ky), window_counts(w, kx))
+        S = [box_sum(p, kx, ky) for p in planes]
         for sgn in (-1, 1):
             dx, dy = (sgn * off, 0) if kx == hx else (0, sgn * off)
             Ns = _shift(N, dx, dy)

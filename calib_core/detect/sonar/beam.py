@@ -68,7 +68,7 @@ def estimate_beam_width_deg(clouds_sonar_m: list, sphere_radius_m: float,
     crops = []
     n = len(clouds_sonar_m)
     n_f = len(DEFAULT_FACTORS if factors is None else factors)
-    for k, i in enumerate(_spread_order(n)):
+    for k, i in enumerate(spread_order(n)):
         if len(crops) >= MAX_CAPTURES:
             break
         crop = beam_crop(clouds_sonar_m[i], r, nominal_deg, None if centers_sonar_m is None else centers_sonar_m[i])
@@ -215,7 +215,7 @@ def _parabola_vertex(x, y) -> float:
     return float(np.clip(v, x0, x2))
 
 
-def _spread_order(n: int) -> list[int]:
+def spread_order(n: int) -> list[int]:
     """0 .. n-1 in an order that spreads any prefix over the whole range (0, n/2, n/4, 3n/4 ...)."""
     order, seen = [], set()
     step = 1

@@ -63,14 +63,14 @@ def metered(rng, photo: Photo, L: np.ndarray) -> Photo:
     return replace(photo, exposure=float(np.clip(target / max(float(L.mean()), 1e-3), 0.4, 3.0)))
 
 
-def _clear_view(static: list, ball, T_wc) -> list:
+def clear_view(static: list, ball, T_wc) -> list:
     """The static parts minus clutter that would hide part of the ball (the case shows it whole,
     apart from its own holder)."""
     return [p for p in static if p.tag != "clutter"
             or occluded_fraction(Scene((ball, p)), 0, T_wc, ball.center_m, ball.radius_m) == 0]
 
 
-def _render(rng, parts_static, parts_ball, with_ball, cam, T_wc, air, photo, aa):
+def render_parts(rng, parts_static, parts_ball, with_ball, cam, T_wc, air, photo, aa):
     photo = photo if with_ball else replace(photo, occluders=())
     scene = Scene(tuple(parts_static + (parts_ball if with_ball else [])))
     L, hit = render_radiance(scene, cam, T_wc, air, aa=aa, photo=photo)
@@ -106,11 +106,11 @@ def glossy(rng, rig, cam, T_wc, scale, with_ball):
     alb, look = gym_look(rng, c, radius)
     style = dict(room.ball_style(rng), albedo=alb, foam_contrast=float(rng.uniform(0.0, 0.05)), holder="stick")
     ball = room.ball_parts(rng, style, c, radius, floor_z, eye)[0]
-    static = _clear_view(static, ball, T_wc)
+    static = clear_view(static, ball, T_wc)
     parts = [ball] + ([range_scenes.chair(rng, c, radius, floor_z, eye)] if on_chair else [])
     air = room.room_air(rng)
     photo = draw_photo(rng, c, radius, eye, look, scale)
-    L, _, _, photo = _render(rng, static, parts, with_ball, cam, T_wc, air, photo, 3)
+    L, _, _, photo = render_parts(rng, static, parts, with_ball, cam, T_wc, air, photo, 3)
     return L, c, radius, photo, f"glossy/{'chair' if on_chair else 'floor'}"
 
 
@@ -140,10 +140,10 @@ def panels(rng, rig, cam, T_wc, scale, with_ball):
                  holder="rest" if where == "rest" else "stick")
     parts = room.ball_parts(rng, style, c, radius, floor_z, eye)
     parts = parts[:1] if where == "floor" else parts
-    static = _clear_view(static, parts[0], T_wc)
+    static = clear_view(static, parts[0], T_wc)
     air = room.room_air(rng)
     photo = draw_photo(rng, c, radius, eye, look, scale)
-    L, _, _, photo = _render(rng, static, parts, with_ball, cam, T_wc, air, photo, 3)
+    L, _, _, photo = render_parts(rng, static, parts, with_ball, cam, T_wc, air, photo, 3)
     return L, c, radius, photo, f"panels/{where}"
 
 
@@ -156,7 +156,7 @@ def motion(rng, rig, cam, T_wc, scale, with_ball):
     static = room.room_scene(rng, floor_z, [c])
     style = dict(room.ball_style(rng), holder="stick")
     parts = room.ball_parts(rng, style, c, radius, floor_z, eye)
-    static = _clear_view(static, parts[0], T_wc)
+    static = clear_view(static, parts[0], T_wc)
     look = BallLook(tuple(c), radius, ks=float(rng.uniform(0.0, 0.15)), shininess=20.0,
                     seam_dir=rand_dir(rng) if rng.random() < 0.3 else None,
                     logo_dir=rand_dir(rng) if rng.random() < 0.4 else None, logo_deg=float(rng.uniform(12, 25)))
@@ -165,7 +165,7 @@ def motion(rng, rig, cam, T_wc, scale, with_ball):
     motion_px = (blur * np.cos(ang), blur * np.sin(ang))
     air = room.room_air(rng)
     photo = draw_photo(rng, c, radius, eye, look, scale)
-    L, hit, scene, photo = _render(rng, static, parts, with_ball, cam, T_wc, air, photo, 3)
+    L, hit, scene, photo = render_parts(rng, static, parts, with_ball, cam, T_wc, air, photo, 3)
     if with_ball:
         L0, _ = render_radiance(Scene(tuple(static)), cam, T_wc, air, aa=3, photo=replace(photo, occluders=()))
         moving = np.isin(hit, scene.ids_with_tag("target", "stand"))

@@ -32,7 +32,7 @@ import numpy as np
 from calib_core.synth import room
 from calib_core.synth.camera_render import Water, render_radiance
 from calib_core.synth.photo import heldout_parts as hp
-from calib_core.synth.photo.cases import _clear_view, draw_photo
+from calib_core.synth.photo.cases import clear_view, draw_photo
 from calib_core.synth.photo.effects import BallLook
 from calib_core.synth.scene import Material, Scene
 
@@ -99,7 +99,7 @@ def dim(rng, rig, cam, T_wc, scale, with_ball, opts):
     if not black_bg:
         style["albedo"] = tuple(np.full(3, rng.uniform(0.02, 0.1)) * rng.uniform(0.8, 1.2, 3))
     parts = room.ball_parts(rng, style, c, radius, floor_z, eye)
-    static = _clear_view(static, parts[0], T_wc)
+    static = clear_view(static, parts[0], T_wc)
     far_x = max(p.center_m[0] for p in static if p.tag == "wall")
     pos, axis, power = _lamp(rng, c, radius, eye, black_bg, far_x)
     air = Water(0.0, tuple(np.full(3, rng.uniform(0.001, 0.01))), up_gain=0.0, side_gain=0.0,

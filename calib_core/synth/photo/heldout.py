@@ -38,7 +38,7 @@ from calib_core.synth import room, world
 from calib_core.synth.camera_render import Water
 from calib_core.synth.photo import heldout_parts as hp
 from calib_core.synth.photo.ball_patterns import PATTERNS
-from calib_core.synth.photo.cases import _clear_view, _render, draw_photo, rand_dir
+from calib_core.synth.photo.cases import clear_view, render_parts, draw_photo, rand_dir
 from calib_core.synth.photo.effects import BallLook
 from calib_core.synth.photo.water import marine_snow
 from calib_core.synth.scene import Box, Cylinder, Material, Rect, Sphere
@@ -91,10 +91,10 @@ def sports(rng, rig, cam, T_wc, scale, with_ball, opts):
     ball = Sphere(tuple(c), radius, Material(alb, 0.9, "foam", tex_scale, tex_contrast, int(rng.integers(1 << 30))),
                   tag="target")
     parts = [ball] + _holder(rng, holder, ball, c, radius, floor_z, T_wc)
-    static = _clear_view(static, ball, T_wc)
+    static = clear_view(static, ball, T_wc)
     photo = draw_photo(rng, c, radius, eye, _sports_look(rng, name, c, radius), scale)
     photo, opts = hp.camera_artefacts(rng, photo, opts, scale)
-    L, _, _, photo = _render(rng, static, parts, with_ball, cam, T_wc, room.room_air(rng), photo, 3)
+    L, _, _, photo = render_parts(rng, static, parts, with_ball, cam, T_wc, room.room_air(rng), photo, 3)
     return L, c, radius, photo, opts, f"sports/{name}/{holder}/{hp.artefact_label(photo, opts)}"
 
 
@@ -160,7 +160,7 @@ def outdoor(rng, rig, cam, T_wc, scale, with_ball, opts):
     ball = Sphere(tuple(c), radius, Material(tuple(np.clip(alb, 0, 1)), 0.9, "foam", 0.03,
                                              float(rng.uniform(0.0, 0.1)), int(rng.integers(1 << 30))), tag="target")
     parts = [ball] + _holder(rng, "stick" if holder == "stick" else holder, ball, c, radius, floor_z, T_wc)
-    static = _clear_view(static, ball, T_wc)
+    static = clear_view(static, ball, T_wc)
     sun, air = _sky_and_sun(rng)
     look = BallLook(tuple(c), radius, ks=float(rng.uniform(0.2, 1.0)) if rng.random() < 0.6 else 0.0,
                     shininess=float(rng.uniform(20, 150)), seam_dir=rand_dir(rng) if rng.random() < 0.3 else None,
@@ -168,7 +168,7 @@ def outdoor(rng, rig, cam, T_wc, scale, with_ball, opts):
     photo = replace(draw_photo(rng, c, radius, eye, look, scale), key_dir=tuple(sun),
                     softness=float(rng.uniform(0.004, 0.015)), vignette=float(rng.uniform(0.0, 0.3)))
     photo, opts = hp.camera_artefacts(rng, photo, opts, scale)
-    L, _, _, photo = _render(rng, static, parts, with_ball, cam, T_wc, air, photo, 3)
+    L, _, _, photo = render_parts(rng, static, parts, with_ball, cam, T_wc, air, photo, 3)
     where = "sky" if in_sky else holder
     return L, c, radius, photo, opts, f"outdoor/{gname}/{where}/{hp.artefact_label(photo, opts)}"
 
@@ -231,7 +231,7 @@ def underwater(rng, rig, cam, T_wc, scale, with_ball, opts):
                                              float(rng.uniform(0.0, 0.08)), int(rng.integers(1 << 30))), tag="target")
     static = _seabed(rng, seabed_z, [c]) if has_bed else []
     parts = [ball] + _water_holder(rng, holder, ball, c, radius, seabed_z, surface_z, T_wc)
-    static = _clear_view(static, ball, T_wc)
+    static = clear_view(static, ball, T_wc)
     look = BallLook(tuple(c), radius, ks=float(rng.uniform(0.0, 0.6)), shininess=float(rng.uniform(20, 100)))
     tilt = rng.normal(0, 0.25, 2)
     photo = replace(draw_photo(rng, c, radius, eye, look, scale), key_dir=tuple(np.array([tilt[0], tilt[1], 1.0])),
@@ -243,7 +243,7 @@ def underwater(rng, rig, cam, T_wc, scale, with_ball, opts):
         photo = replace(photo, spot_gain=float(rng.uniform(0.3, 1.5)), spot_pos=tuple(eye + [0, 0, 0.15]),
                         spot_dir=water.spot_dir, spot_power=water.spot_power)
     photo, opts = hp.camera_artefacts(rng, photo, opts, scale)
-    L, _, _, photo = _render(rng, static, parts, with_ball, cam, T_wc, water, photo, 3)
+    L, _, _, photo = render_parts(rng, static, parts, with_ball, cam, T_wc, water, photo, 3)
     snow = rng.random() < 0.6
     if snow:
         s = scale / 0.5

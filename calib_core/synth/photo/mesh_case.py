@@ -25,7 +25,7 @@ import numpy as np
 from calib_core.synth import room, world
 from calib_core.synth.photo import heldout as held
 from calib_core.synth.photo import heldout_parts as hp
-from calib_core.synth.photo.cases import _clear_view, _render, draw_photo, rand_dir
+from calib_core.synth.photo.cases import clear_view, render_parts, draw_photo, rand_dir
 from calib_core.synth.photo.effects import BallLook
 from calib_core.synth.photo.see_through import OpenShell
 from calib_core.synth.scene import Material
@@ -95,11 +95,11 @@ def mesh(rng, rig, cam, T_wc, scale, with_ball, opts):
         parts = [ball] + _hanging(rng, c, radius, float(max(eye[2], c[2]) + rng.uniform(1.0, 2.5)))
     else:
         parts = [ball]
-    static = _clear_view(static, ball, T_wc)
+    static = clear_view(static, ball, T_wc)
     photo = replace(draw_photo(rng, c, radius, eye, BallLook(tuple(c), radius), scale), occluders=())
     if where == "water":
         tilt = rng.normal(0, 0.25, 2)
         photo = replace(photo, key_dir=(tilt[0], tilt[1], 1.0), bloom_px=0.0)
     photo, opts = hp.camera_artefacts(rng, photo, opts, scale)
-    L, _, _, photo = _render(rng, static, parts, with_ball, cam, T_wc, air, photo, 3)
+    L, _, _, photo = render_parts(rng, static, parts, with_ball, cam, T_wc, air, photo, 3)
     return L, c, radius, photo, opts, f"mesh/{style}/{holder}/{where}/{hp.artefact_label(photo, opts)}"

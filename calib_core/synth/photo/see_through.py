@@ -28,7 +28,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from calib_core.synth.primitives import MeshSphere, _frame_from_normal
+from calib_core.synth.primitives import MeshSphere, frame_from_normal
 
 PATTERNS = ("lattice", "net", "holes")
 
@@ -55,7 +55,7 @@ class OpenShell(MeshSphere):
     def _on_wire(self, p):
         if self.pattern == "lattice":
             return MeshSphere._on_wire(self, p)
-        q = p @ _frame_from_normal(self.pole)
+        q = p @ frame_from_normal(self.pole)
         rho = np.maximum(np.linalg.norm(q, axis=1), 1e-12)
         if self.pattern == "holes":
             near = (q / rho[:, None]) @ fibonacci_sphere(self.n_holes).T

@@ -35,7 +35,7 @@ from calib_core.synth.photo import heldout_parts as hp
 from calib_core.synth.photo.cases import draw_photo, metered
 from calib_core.synth.photo.effects import BallLook
 from calib_core.synth.photo.mirrors import Mirror, composite_mirror
-from calib_core.synth.rig import _camera_pose
+from calib_core.synth.rig import look_at_pose
 from calib_core.synth.scene import Cylinder, Material, Rect, Scene, Sphere
 
 FLOATS = ((0.95, 0.40, 0.06), (0.88, 0.88, 0.86), (0.92, 0.80, 0.10), (0.80, 0.12, 0.10), (0.06, 0.06, 0.07))
@@ -49,7 +49,7 @@ def _pose(rng, T_wc):
     yaw = np.arctan2(fwd[1], fwd[0])
     pitch = np.deg2rad(rng.uniform(-5, 35))
     ahead = np.array([np.cos(yaw) * np.cos(pitch), np.sin(yaw) * np.cos(pitch), np.sin(pitch)])
-    return _camera_pose(rng, eye, eye + 3.0 * ahead)
+    return look_at_pose(rng, eye, eye + 3.0 * ahead)
 
 
 def _tile_mat(rng) -> Material:

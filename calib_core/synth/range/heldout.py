@@ -33,7 +33,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from calib_core.io.clouds import Cloud
-from calib_core.synth.range.sim import _cast
+from calib_core.synth.range.sim import cast_rays
 from calib_core.synth.scene import Scene, raycast
 
 
@@ -104,7 +104,7 @@ def simulate_lidar128(scene: Scene, T_world_sensor: np.ndarray, cfg: Lidar128Con
     D, ring = lidar128_directions(cfg, rng)
     sigma = rng.uniform(cfg.noise_min_m, cfg.noise_max_m, cfg.n_rings)
     bias = cfg.ring_bias_m * rng.standard_normal(cfg.n_rings)
-    t, refl, cosi = _cast(scene, T_world_sensor, D, cfg.max_range_m)
+    t, refl, cosi = cast_rays(scene, T_world_sensor, D, cfg.max_range_m)
     n_az = len(D) // cfg.n_rings
     column_lost = np.repeat(rng.random(n_az) < cfg.column_loss, cfg.n_rings)
     ok = (np.isfinite(t) & (t >= cfg.min_range_m) & (refl > 0) & ~column_lost
@@ -131,7 +131,7 @@ def simulate_livox(scene: Scene, T_world_sensor: np.ndarray, cfg: LivoxConfig,
                    rng: np.random.Generator) -> Cloud:
     """One accumulated rosette scan; the cloud in the sensor frame, metres."""
     D = livox_directions(cfg, rng)
-    t, refl, cosi = _cast(scene, T_world_sensor, D, cfg.max_range_m)
+    t, refl, cosi = cast_rays(scene, T_world_sensor, D, cfg.max_range_m)
     ok = (np.isfinite(t) & (t >= cfg.min_range_m) & (refl > 0) & (rng.random(len(t)) >= cfg.dropout))
     r = t[ok] + cfg.range_noise_m * rng.standard_normal(int(ok.sum()))
     return Cloud(D[ok] * r[:, None], np.clip(refl[ok] * (0.3 + 0.7 * cosi[ok]), 0, None))

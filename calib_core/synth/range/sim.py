@@ -55,7 +55,7 @@ class RgbdConfig:
     max_range_m: float = 4.5
 
 
-def _cast(scene: Scene, T_world_sensor: np.ndarray, dirs_sensor: np.ndarray, max_range_m: float):
+def cast_rays(scene: Scene, T_world_sensor: np.ndarray, dirs_sensor: np.ndarray, max_range_m: float):
     R, origin = T_world_sensor[:3, :3], T_world_sensor[:3, 3]
     d_world = dirs_sensor @ R.T
     t, hit, n = raycast(scene, origin, d_world, acoustic=False, max_range_m=max_range_m)
@@ -77,7 +77,7 @@ def simulate_lidar(scene: Scene, T_world_sensor: np.ndarray, cfg: LidarConfig,
                    rng: np.random.Generator) -> Cloud:
     """One LiDAR sweep; the cloud in the sensor frame (x fwd, y left, z up), metres."""
     D = lidar_directions(cfg)
-    t, refl, cosi = _cast(scene, T_world_sensor, D, cfg.max_range_m)
+    t, refl, cosi = cast_rays(scene, T_world_sensor, D, cfg.max_range_m)
     ok = (np.isfinite(t) & (t >= cfg.min_range_m) & (refl >= cfg.min_reflectivity)
           & (rng.random(len(t)) >= cfg.dropout))
     r = t[ok] + cfg.range_noise_m * rng.standard_normal(int(ok.sum()))
@@ -116,7 +116,7 @@ def simulate_rgbd(scene: Scene, T_world_sensor: np.ndarray, cfg: RgbdConfig,
                   rng: np.random.Generator) -> Cloud:
     """One RGB-D depth frame back-projected to a cloud in the sensor frame, metres."""
     D, fwd = rgbd_directions(cfg)
-    t, refl, cosi = _cast(scene, T_world_sensor, D, cfg.max_range_m / max(fwd.min(), 0.1))
+    t, refl, cosi = cast_rays(scene, T_world_sensor, D, cfg.max_range_m / max(fwd.min(), 0.1))
     z = t * fwd  # depth along the optical axis
     z = np.where(np.isfinite(z) & (z >= cfg.min_range_m) & (z <= cfg.max_range_m), z, np.nan)
     z = z + cfg.depth_noise_k * np.nan_to_num(z) ** 2 * rng.standard_normal(len(z))
