@@ -23,6 +23,7 @@ import numpy as np
 
 from calib_core.geometry import invert_T, pose_error, rotvec_from_T
 import calib_core.solve.rig as rig_module
+from calib_core.solve.refine import refine
 from calib_core.detect.image import fit as image_fit
 from calib_core.pipeline import SessionData, detect_session
 from calib_core.session import load_session
@@ -69,6 +70,12 @@ def without_limb_floor(dets: dict, fraction: float) -> dict:
             C = np.asarray(e["cov_px2"], float).reshape(2, 2) - (fraction * w) ** 2 * np.eye(2)
             e["cov_px2"] = C.ravel().tolist()
     return out
+
+
+def stereo_as_stated(prob_free, state, robust=None):
+    """``--before``: stands in for calib_core.solve.stereo_factor.stereo_factor (factor 1, the
+    scale-free fit as solve_rig then takes it; harmless on the code before the round, which has none)."""
+    return 1.0, {"factor": 1.0}, prob_free, refine(prob_free, state, robust=robust)
 
 
 def run_one(folder: Path, preset: str, seed: int, scale: float, cached: bool = False, keep: bool = False,
@@ -137,7 +144,7 @@ def main() -> None:
                          "solver (the cached detections made by the current code)")
     args = ap.parse_args()
     if args.before:
-        rig_module.stereo_factor = lambda p, st, r=None: (1.0, {"factor": 1.0}, p, None)
+        rig_module.stereo_factor = stereo_as_stated
     head = ["preset", "seed", "cam", "rot deg", "t mm", "used", "not found", "image <=3px/whole",
             "false used", "flagged", "truly moved",
             "scale est/true", "mahal2/dof", "detect s", "solve s"]

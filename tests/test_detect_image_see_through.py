@@ -66,3 +66,35 @@ def test_a_wiffle_ball_whose_holes_notch_its_outline_is_found():
     det = im.detect_sphere_in_image(case.image, case.cam, case.radius_m)
     assert det.found, det.reason
     assert np.hypot(*(det.center_uv_px - case.true_uv_px)) < 1.0
+
+
+def _fit_at(centre, r, score, width=3.0):
+    a = np.linspace(0, 2 * np.pi, 64, endpoint=False)
+    sil = np.asarray(centre, float) + r * np.stack([np.cos(a), np.sin(a)], axis=1)
+    return im.CandidateFit(True, "", None, np.asarray(centre, float), 0.01 * np.eye(2), sil, 0.9, score, 40.0,
+                           1.0, {"edge_width_px": width}, True)
+
+
+class _ClosedLook:
+    """Just what _closed_cue uses: two see-through candidates, the ball's clear, a small blob's
+    accepted by the fit but not by the cue's gate (radius under SMALL_RADIUS_PX)."""
+
+    def __init__(self):
+        self.fits = {60.0: _fit_at((60, 60), 30.0, 0.9), 200.0: _fit_at((200, 60), 13.0, 0.8)}
+
+    def closed_candidates(self):
+        return [im.Candidate(np.array([x, 60.0]), r, (r, r), 0.0, False, 50.0, "closed-bright")
+                for x, r in ((60.0, 30.0), (200.0, 13.0))]
+
+    def refine_closed(self, c):
+        return self.fits[float(c.centre_px[0])]
+
+
+def test_only_the_see_through_cues_clear_outlines_count():
+    """A closed-view guess the cue's gate refuses is not kept beside the clear one: it would be an
+    accepted second outline ("two round objects") that the gate was made to keep out."""
+    look = _ClosedLook()
+    assert im._closed_clear(look.fits[60.0]) and not im._closed_clear(look.fits[200.0])
+    cands, fits = im._closed_cue(look, [], [])
+    assert len(cands) == 2  # both tried
+    assert [f for _, f in fits] == [look.fits[60.0]]

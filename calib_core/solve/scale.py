@@ -162,7 +162,8 @@ def lr_test(res_fixed: RefineResult, res_free: RefineResult, systematic_var: flo
     """F test of s = 1 against s free (see the module doc).
 
     ``systematic_var``: variance of the scale from a systematic the fit cannot see (the sphere
-    diameter's tolerance, one camera): the statistic is deflated by
+    diameter's tolerance, one camera; the model errors common to all captures, systematic.py, in
+    a joint solve): the statistic is deflated by
     ``v sigma_s^2 / (v sigma_s^2 + systematic_var)``, so only a deviation beyond it counts."""
     from scipy.special import fdtrc  # scipy.stats takes seconds to import
 

@@ -501,17 +501,17 @@ def _more_cues(look, cands, fits):
 def _closed_cue(look, cands, fits):
     """Fifth cue, when nothing else gave a clear outline: a see-through ball (lattice, cage,
     net, wiffle) looked for on the image closed at its mesh cell's scale (:mod:`.closing`).
-    It counts only when it gives a clear outline; each candidate draws from its own random
-    stream (the shared one is left as it was: what draws after it draws as without the cue)."""
+    Only its clear outlines count (:func:`_closed_clear`; its other fits are guesses on a
+    transformed image and are dropped: kept, an accepted blob the gate refuses could make the
+    clear one "two round objects"); each candidate draws from its own random stream (the
+    shared one is left as it was: what draws after it draws as without the cue)."""
     # (not where the image itself gave an accepted, if weak, outline: closing makes any dark or
     # bright blob rounder, and there it would only outbid the raw outline; a half-buried boulder
     # at 0.73 went to 1.00)
     accepted = [f for _, f in fits if f.ok]
     more = [c for c in look.closed_candidates() if not c.touches_border and not _near_accepted(c, accepted)]
-    fifth = [(c, look.refine_closed(c)) for c in more]
-    if any(_closed_clear(f) for _, f in fifth):
-        return cands + more, fits + fifth
-    return cands, fits
+    clear = [(c, f) for c, f in ((c, look.refine_closed(c)) for c in more) if _closed_clear(f)]
+    return (cands + more, fits + clear) if clear else (cands, fits)
 
 
 def _closed_clear(f: CandidateFit) -> bool:
