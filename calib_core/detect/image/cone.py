@@ -47,7 +47,6 @@ class ConeFit:
     reading: str = ""  # which edges it was fitted to, when a caller records it
     edge_uv_px: np.ndarray | None = None  # (N,2) the edge points fitted, when a caller records them
     smear: object | None = None  # the motion smear measured around the outline (image.smear.Smear), when read as one
-    edge_xy: np.ndarray | None = None  # (N,2) normalised edge points fitted, when a caller records them
 
     @property
     def inlier_fraction(self) -> float:
@@ -176,7 +175,7 @@ def _start(cam, xy, v, a_range_rad, inlier_px, rng, n_hyp=64):
     return _ransac(v, scale0, a_range_rad, max(inlier_px, 2.0), rng, n_hyp=n_hyp, extra=extra)
 
 
-def _irls(cam, v, w, a, inlier_px, max_iter, tight: bool, weights: np.ndarray | None = None):
+def _irls(cam, v, w, a, inlier_px, max_iter, tight: bool):
     """Reweighted Gauss-Newton from (w, a); returns (w, a, inlier band px) or None.
 
     The band starts at ``max(inlier_px, 2)`` px and then follows 3.5 x the inliers' spread;
@@ -200,7 +199,7 @@ def _irls(cam, v, w, a, inlier_px, max_iter, tight: bool, weights: np.ndarray | 
         k = max(1.345 * max(sig, 0.05), 0.1)
         ar = np.maximum(np.abs(r), 1e-12)
         wt = np.where(r >= 0, np.minimum(1.0, k / ar), np.minimum(1.0, (k / ar) ** 2))
-        wt = np.where(inl, wt, 0.0) if weights is None else np.where(inl, wt * weights, 0.0)
+        wt = np.where(inl, wt, 0.0)
         e1, e2 = orthonormal_basis(w)
         sin_ang = np.maximum(np.sin(ang), 1e-9)
         J = np.column_stack([-scale * (v @ e1) / sin_ang, -scale * (v @ e2) / sin_ang, -scale])
@@ -241,7 +240,7 @@ def _finish(cam, v, w, a, thr, corr_points) -> ConeFit | None:
 def fit_cone(cam: CameraModel, xy: np.ndarray, a_range_rad=(1e-3, 1.4), inlier_px: float = 1.5,
              rng: np.random.Generator | None = None, corr_points: float = 1.0,
              start: tuple[np.ndarray, float] | None = None, max_iter: int = 12,
-             tight: bool = False, n_hyp: int = 64, weights: np.ndarray | None = None) -> ConeFit | None:
+             tight: bool = False, n_hyp: int = 64) -> ConeFit | None:
     """Robust fit of a sphere's silhouette cone to edge points.
 
     Args:
@@ -256,8 +255,6 @@ def fit_cone(cam: CameraModel, xy: np.ndarray, a_range_rad=(1e-3, 1.4), inlier_p
         max_iter: most reweighted Gauss-Newton steps.
         tight: the inlier band only narrows during the iterations (see :func:`_irls`).
         n_hyp: 3-point hypotheses of the RANSAC start (more where few points are on the outline).
-        weights: (N,) relative precision of the points (1 / variance, any scale) for the
-            reweighted steps, or None (all alike); the inliers and the spread are unweighted.
 
     Returns:
         :class:`ConeFit`, or None when no plausible cone explains the points.
@@ -273,7 +270,7 @@ def fit_cone(cam: CameraModel, xy: np.ndarray, a_range_rad=(1e-3, 1.4), inlier_p
         start = _start(cam, xy, v, a_range_rad, inlier_px, rng, n_hyp)
         if start is None:
             return None
-    out = _irls(cam, v, np.asarray(start[0], float), float(start[1]), inlier_px, max_iter, tight, weights)
+    out = _irls(cam, v, np.asarray(start[0], float), float(start[1]), inlier_px, max_iter, tight)
     if out is None:
         return None
     w, a, thr = out

@@ -12,7 +12,7 @@ ball's limb is the outermost edge only over a stretch, the limb is round all the
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 
 import cv2
 import numpy as np
@@ -420,9 +420,7 @@ def _fitted(cam, sig: _Signal, p2, R: float, sphere_radius_m: float) -> tuple[Ca
     """The pass-2 fit as a candidate fit (centre, covariance, outline, support, score,
     contrast, range; extras), not yet judged; and the outline's outside mismatch."""
     fit, ok2, s2, k2, widths = p2
-    # the centre from the precision-weighted cone (:func:`_weighted_place`); the outline, its
-    # judgement and the score from the equally weighted fit
-    centre, cov = centre_uv_and_cov(cam, _weighted_place(cam, fit, edge_precision(s2[ok2]), R, k2))
+    centre, cov = centre_uv_and_cov(cam, fit)
     sil_f = silhouette_uv(cam, fit.w, fit.a_rad, n=k2)
     support = float(fit.inliers.sum()) / k2
     # peak gradient of a step c smoothed by a Gaussian is c / (sigma sqrt(2 pi)); optics blur ignored
@@ -730,32 +728,11 @@ def _pass2_reading(cam, sig, fit1: ConeFit, R: float, a_range_rad, rng, geo, hal
     return best
 
 
-# relative precision of a pass-2 edge: its gradient peak over the outline's median, squared (the
-# variance of a blurred step's position in noise goes as noise^2 / step^2), capped: no few
-# edges may carry the fit
-PRECISION_CAP = 4.0
-
-
-def edge_precision(strength: np.ndarray) -> np.ndarray:
-    """(K,) relative weights of edges of these gradient peaks (:data:`PRECISION_CAP`). Where a
-    ball is lit from one side, its limb steps strongly to the background on the lit side and
-    weakly on the other, where the shading ramp falling to the limb (or the terminator just
-    inside it) pulls the gradient peak inwards: equal weights moved the centre 0.5-1.2 px
-    towards the lit side (dim kind, lit ball on black)."""
-    g = np.asarray(strength, float)
-    med = float(np.median(g)) if len(g) else 0.0
-    if not med > 0:
-        return np.ones(len(g))
-    return np.minimum((g / med) ** 2, PRECISION_CAP)
-
-
 def _pass2_fit(cam, xy2, fit1: ConeFit, R: float, a_range_rad, rng, k2: int, perim: float) -> ConeFit | None:
-    """The pass-2 cone on one reading's edge points (recorded as its ``edge_xy``): refined from
-    ``fit1``, or, when that is not clean, the tightest majority's cone if it is very round."""
+    """The pass-2 cone on one reading's edge points: refined from ``fit1``, or, when that is
+    not clean, the tightest majority's cone if it is very round."""
     kw = dict(inlier_px=max(1.0, 0.01 * R), rng=rng, corr_points=max(1.0, CORR_LENGTH_PX * k2 / perim))
     fit = fit_cone(cam, xy2, a_range_rad, start=(fit1.w, fit1.a_rad), **kw)
-    if fit is not None:
-        fit.edge_xy = xy2
     if fit is None or fit.sigma_px > clean_rms_px(R):
         # edges of things touching the sphere (a seat, a backrest) pulled the fit off:
         # search again for the cone the tightest majority of the edges lie on
@@ -766,30 +743,7 @@ def _pass2_fit(cam, xy2, fit1: ConeFit, R: float, a_range_rad, rng, k2: int, per
                 and alt.inliers.sum() >= TIGHT_MIN_SUPPORT * k2
                 and (fit is None or _quality(alt) > _quality(fit))):
             fit = alt
-            fit.edge_xy = xy2
     return fit
-
-
-WEIGHTED_MIN_INLIERS = 0.8
-
-
-def _weighted_place(cam, fit: ConeFit, weights: np.ndarray, R: float, k2: int) -> ConeFit:
-    """The chosen pass-2 ``fit`` with its cone (axis, half-angle, their covariance) refitted from
-    it with its edges weighted by their precision (:func:`edge_precision`); its inliers,
-    residuals and spread (what the outline was chosen and is judged on) stay the equally
-    weighted fit's: the caller takes only the centre from it, after every choice (weighted
-    inside the readings, a texture outline in ball-free big s1078 became acceptable; the
-    weighted outline judged, motion s1038's smeared outline lost to a sharper partial one). Only when the weighted cone keeps
-    WEIGHTED_MIN_INLIERS of the inliers (it did not run off to a few strong edges)."""
-    if fit.edge_xy is None or len(weights) != len(fit.edge_xy):
-        return fit
-    sil = silhouette_uv(cam, fit.w, fit.a_rad, n=k2)
-    perim = float(np.linalg.norm(np.diff(np.vstack([sil, sil[:1]]), axis=0), axis=1).sum())
-    fw = fit_cone(cam, fit.edge_xy, (1e-4, 1.5), inlier_px=max(1.0, 0.01 * R), start=(fit.w, fit.a_rad),
-                  corr_points=max(1.0, CORR_LENGTH_PX * k2 / max(perim, 1e-9)), weights=weights)
-    if fw is None or fw.inliers.sum() < WEIGHTED_MIN_INLIERS * fit.inliers.sum():
-        return fit
-    return replace(fit, w=fw.w, a_rad=fw.a_rad, basis=fw.basis, cov_params=fw.cov_params)
 
 
 def _quality(fit: ConeFit) -> float:
