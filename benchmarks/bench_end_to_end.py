@@ -37,11 +37,13 @@ def _image_truth(gt: dict, cid: str, cam: str) -> dict:
     return ((gt["captures"].get(cid) or {}).get("images") or {}).get(cam) or {}
 
 
-def detection_counts(gt: dict, dets: dict, cam: str, used: set, tol_px: float = 3.0) -> tuple[str, int]:
-    """("found/visible", false used): image detections within ``tol_px`` of the true projected
-    centre among images showing the whole sphere, and used captures whose image centre is more
-    than ``tol_px`` off (or whose target moved) -- a false detection that reached the solve."""
+def detection_counts(gt: dict, dets: dict, cam: str, used: set, tol_px: float = 3.0) -> tuple[str, int, list]:
+    """("found/visible", false used, wrong): image detections within ``tol_px`` of the true
+    projected centre among images showing the whole sphere; used captures whose image centre is
+    more than ``tol_px`` off (or whose target moved) -- a false detection that reached the solve;
+    the captures whose image centre is more than ``tol_px`` off (a gate that flags one is right)."""
     visible = found = false_used = 0
+    wrong = []
     for cid, d in dets.items():
         truth = _image_truth(gt, cid, cam)
         e = d.get(cam) or {}
@@ -54,7 +56,9 @@ def detection_counts(gt: dict, dets: dict, cam: str, used: set, tol_px: float = 
             found += off is not None and off <= tol_px
         if cid in used and (off is None or off > tol_px or (gt["captures"][cid].get("moved_m") or 0) > 0.01):
             false_used += 1
-    return f"{found}/{visible}", false_used
+        if off is not None and off > tol_px:
+            wrong.append(cid)
+    return f"{found}/{visible}", false_used, sorted(wrong)
 
 
 def without_limb_floor(dets: dict, fraction: float) -> dict:
@@ -121,13 +125,13 @@ def run_one(folder: Path, preset: str, seed: int, scale: float, cached: bool = F
         m2 = float(e @ np.linalg.solve(np.asarray(c["covariance"], float)[:6, :6], e) / 6)
         flagged = sorted(o.get("capture", "?") if isinstance(o, dict) else str(o) for o in c.get("outliers", []))
         scale = res.get("range_scale", {})
-        recall, false_used = detection_counts(gt, dets, cam, set(c["captures_used"]))
+        recall, false_used, wrong = detection_counts(gt, dets, cam, set(c["captures_used"]))
         rows.append([preset, seed, cam, f"{np.degrees(rot):.3f}", f"{t * 1000:.1f}",
                      f"{len(c['captures_used'])}/{len(targets)}", missed, recall, false_used,
                      ",".join(flagged) or "-",
                      ",".join(moved) or "-",
                      f"{scale.get('value', 1.0):.4f}/{gt.get('range_scale', 1.0):.3f}" if scale.get("estimated") else "-",
-                     f"{m2:.2f}", f"{t_det:.1f}", f"{t_cal:.2f}"])
+                     f"{m2:.2f}", f"{t_det:.1f}", f"{t_cal:.2f}", ",".join(wrong) or "-"])
     return rows
 
 
@@ -147,7 +151,7 @@ def main() -> None:
         rig_module.stereo_factor = stereo_as_stated
     head = ["preset", "seed", "cam", "rot deg", "t mm", "used", "not found", "image <=3px/whole",
             "false used", "flagged", "truly moved",
-            "scale est/true", "mahal2/dof", "detect s", "solve s"]
+            "scale est/true", "mahal2/dof", "detect s", "solve s", "image > 3 px off"]
     print(" | ".join(head))
     errs, counts = [], []
     with tempfile.TemporaryDirectory() as tmp:
@@ -160,7 +164,9 @@ def main() -> None:
                     if len(row) > 4:
                         errs.append((float(row[3]), float(row[4]), float(row[12])))
                         flagged = set() if row[9] == "-" else set(row[9].split(","))
+                        # flagged rightly: the target moved, or the image detection is false
                         moved = set() if row[10] == "-" else set(row[10].split(","))
+                        moved |= set() if row[15] == "-" else set(row[15].split(","))
                         counts.append((len(flagged - moved), int(row[5].split("/")[0]) + len(flagged - moved),
                                        int(row[8]), row[11] != "-" and row[11].endswith("/1.000")))
     if errs:
