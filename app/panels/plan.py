@@ -114,11 +114,9 @@ class PlanPanel:
             return
         sc = self.wb.server.scene
         for k, s in enumerate(sp.plan.suggestions, 1):
-            worst = max(r.max() for r, _ in s.sigma_after.values()), max(t.max() for _, t in s.sigma_after.values())
             self.nodes.append(sc.add_icosphere(f"/plan/next{k}", radius=radius_m, color=GHOST_RGB, opacity=0.35,
                                                position=tuple(s.X_sonar_m)))
-            self.nodes.append(sc.add_label(f"/plan/next{k}_label", f"next {k}: {worst[0]:.2f} deg / {worst[1]:.1f} mm",
-                                           position=tuple(s.X_sonar_m + [0, 0, 1.5 * radius_m])))
+            self.nodes.append(sc.add_label(f"/plan/next{k}_label", f"next {k}", position=tuple(s.X_sonar_m + [0, 0, 1.5 * radius_m])))
 
     def redraw_images(self) -> None:
         """Rings on the selected capture's image per camera, and the coverage pictures, of the last plan."""
