@@ -116,7 +116,8 @@ class PlanPanel:
         for k, s in enumerate(sp.plan.suggestions, 1):
             self.nodes.append(sc.add_icosphere(f"/plan/next{k}", radius=radius_m, color=GHOST_RGB, opacity=0.35,
                                                position=tuple(s.X_sonar_m)))
-            self.nodes.append(sc.add_label(f"/plan/next{k}_label", f"next {k}", position=tuple(s.X_sonar_m + [0, 0, 1.5 * radius_m])))
+            self.nodes.append(sc.add_label(f"/plan/next{k}_label", f"next {k}",
+                                           position=tuple(s.X_sonar_m + [0, 0, 1.5 * radius_m])))
 
     def redraw_images(self) -> None:
         """Rings on the selected capture's image per camera, and the coverage pictures, of the last plan."""
