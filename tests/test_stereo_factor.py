@@ -56,3 +56,38 @@ def test_an_exact_stereo_keeps_its_covariance_and_a_scale_error_is_still_found()
     held = _solve(rig, rig.T_cam2_cam1, False)  # --no-scale: the stereo is judged all the same
     assert held.scale == 1.0 and held.stereo_factor["factor"] < 2.0
     assert stereo_factor_phrase({"factor": 1.0}, True) == ""
+
+
+def _stated_times(rig, k: float):
+    """The rig's detections stated with sigmas ``k`` times their true ones."""
+    rig.cov_X_m2 = rig.cov_X_m2 * k ** 2
+    for c in rig.cov_uv_px2:
+        rig.cov_uv_px2[c] = rig.cov_uv_px2[c] * k ** 2
+    return rig
+
+
+def test_the_stereo_is_judged_against_the_detections_own_factor_not_against_one():
+    # detections stated 2x too wide (conservative, as the rendered sessions' detectors state them) and a
+    # stereo 2x worse than stated: relative to the detections the stereo is 4x over-confident in variance,
+    # which the F test (every covariance right up to one common factor) must not see as a scale error
+    from calib_core.solve.refine import RigProblem, refine
+    from calib_core.solve.rig import RigState
+    from calib_core.solve.stereo_factor import block_factor
+
+    rig = _stated_times(synthetic_rig(23, n_captures=9, scale=1.0, sigma_px=0.1, sigma_m=0.001), 2.0)
+    rng = np.random.default_rng(5)
+    T = rig.T_cam2_cam1.copy()
+    sd = np.sqrt(np.diag(default_stereo_cov()))
+    T[:3, :3] = exp_so3(2.0 * sd[:3] * rng.standard_normal(3)) @ T[:3, :3]
+    T[:3, 3] += 2.0 * sd[3:] * rng.standard_normal(3)
+    cds = [camera_data(c, rig.cameras[c], rig.capture_ids, rig.uv_px[c], rig.cov_uv_px2[c], rig.X_sonar_m, rig.cov_X_m2)
+           for c in ("cam1", "cam2")]
+    prob = RigProblem(cds, None, {"cam2": Link(T, default_stereo_cov())}, estimate_scale=True)
+    res = refine(prob, RigState(rig.T_cam_sonar["cam1"], {"cam1": np.eye(4), "cam2": T}))
+    f_rel, _, _, f_obs = block_factor(prob, res)
+    f_one = block_factor(prob, res, relative=False)[0]
+    assert f_obs < 0.5  # the detections' own factor: about 1 / 2^2
+    assert abs(f_rel - f_one / f_obs) < 1e-9
+    assert f_rel > 2.0 * max(f_one, 1.0)
+    rs = _solve(rig, T)  # iterated to agreement: 16.4 (the one-group estimate stopped at 3.2)
+    assert rs.stereo_factor["factor"] > 8.0 and rs.stereo_factor["obs_factor"] < 0.5
