@@ -39,10 +39,14 @@ def sphere_pose_at(cam: CameraModel, uv_px, distance_m) -> np.ndarray:
 
 def render(cam: CameraModel, background: np.ndarray, centre_cam_m, radius_m: float,
            rng: np.random.Generator, colour=(210, 90, 40), mesh=True, chain=True, ss=3,
-           blur_px=0.7, noise=2.0, hole_mix=0.45, distractors=(), shading=True) -> tuple[np.ndarray, np.ndarray]:
+           blur_px=0.7, noise=2.0, hole_mix=0.45, distractors=(), shading=True,
+           light=None) -> tuple[np.ndarray, np.ndarray]:
     """Render one capture; returns (uint8 RGB image, true centre uv_px (2,)).
 
     distractors: ((u, v, radius_px, (r, g, b)), ...) flat discs drawn on the background.
+    light: (unit direction towards the light (3,), camera frame; ambient share) for a matte
+    (Lambertian) ball lit from one side: ambient + (1 - ambient) max(0, n . l) of its colour,
+    instead of the default view-facing shading.
     """
     img = background.astype(np.float32).copy()
     for (u, v, rr, col) in distractors:
@@ -90,6 +94,9 @@ def render(cam: CameraModel, background: np.ndarray, centre_cam_m, radius_m: flo
             lon = np.arctan2(P[:, 0], P[:, 2])
             lat = np.arcsin(np.clip(-P[:, 1] / radius_m, -1, 1))
             shade = 0.75 + 0.25 * np.clip(-(P @ w) / radius_m, 0, 1) if shading else np.ones(len(P))
+            if light is not None:
+                to_light, ambient = np.asarray(light[0], float), float(light[1])
+                shade = ambient + (1 - ambient) * np.clip(P @ to_light / radius_m, 0, None)
             sph = np.asarray(colour, float)[None, :] * shade[:, None]
             if mesh:
                 sp = np.deg2rad(15.0)

@@ -27,6 +27,7 @@ from calib_core.detect.image.blur import (BLUR_MAX_RADIUS_FRACTION, CLEAN_RMS_FR
                                           SHARP_EDGE_WIDTH_PX, SMALL_RADIUS_PX, blur_floor_px2, clean_rms_px, is_blurred,
                                           outline_rms_limit_px)
 from calib_core.detect.image import smear
+from calib_core.detect.image.limb import lopsided_floor_px2
 from calib_core.detect.image.region import Candidate
 
 SMOOTH_SIGMA_PX = 1.0
@@ -48,7 +49,8 @@ SYS_FRACTION = 0.2
 # per dof was 1.1-1.6 per radius bin (5.6 for 60-80 px); 0.01 x the width brings it to 0.7-1.0
 # (4.0 for 60-80 px: one side-lit scene, canal, whose shading offset is shared by its captures:
 # the pose covariance's systematic image offset, solve/systematic.py, carries that). It scales
-# with the image's resolution, as the width does.
+# with the image's resolution, as the width does. What a strongly lopsided limb (a side-lit ball)
+# adds on top, measured per image from the outline's residuals, is image.limb's floor.
 EDGE_WIDTH_FRACTION = 0.01
 # Acceptance: at least MIN_SUPPORT of the outline on the fitted cone (about half may be hidden
 # by a holder, a hand or low contrast), and an edge RMS a round outline of real (JPEG, blurred)
@@ -401,19 +403,31 @@ def _pass1_smoothed(cam, sig: _Signal, geo, a_range_rad, R: float) -> ConeFit | 
     return None
 
 
-def centre_floor_px2(edge_rms_px: float, radius_px: float, edge_width_px: float, blur_allowed: bool = True) -> float:
+def centre_floor_px2(edge_rms_px: float, radius_px: float, edge_width_px: float, blur_allowed: bool = True,
+                     lopsided_px2: float = 0.0) -> float:
     """Variance (px^2) per image axis that the whole outline shares, added to the cone fit's
     centre covariance (which sees only the scatter of the edge points about the outline):
     systematic outline deviations (ragged open-mesh envelope, shading, JPEG), SYS_FRACTION x the
     edge RMS; a blurred outline's plateau (image.blur; only when ``blur_allowed``, a mostly
-    visible outline); and the lopsided limb, EDGE_WIDTH_FRACTION x the edge width (see above;
-    nothing when the width is unknown)."""
-    v = (SYS_FRACTION * edge_rms_px) ** 2
+    visible outline); the lopsided limb, EDGE_WIDTH_FRACTION x the edge width (see above;
+    nothing when the width is unknown), and the share its residuals show (``lopsided_px2``,
+    image.limb.lopsided_floor_px2)."""
+    v = (SYS_FRACTION * edge_rms_px) ** 2 + lopsided_px2
     if blur_allowed:
         v += blur_floor_px2(radius_px, edge_width_px)
     if np.isfinite(edge_width_px) and edge_width_px > 0:
         v += (EDGE_WIDTH_FRACTION * edge_width_px) ** 2
     return float(v)
+
+
+def _lopsided_px2(fit: ConeFit, sil_f: np.ndarray, centre: np.ndarray, ok2: np.ndarray, k2: int) -> float:
+    """The lopsided limb's floor (limb.lopsided_floor_px2) of a pass-2 fit: its inlier edges'
+    residuals at the angles of their normals (the K outline points of the fit, in pass 2's order)."""
+    nrm = outward_normals(sil_f, centre if np.isfinite(centre).all() else sil_f.mean(axis=0))
+    th = np.arctan2(nrm[:, 1], nrm[:, 0])[ok2][fit.inliers]
+    perim = float(np.linalg.norm(np.diff(np.vstack([sil_f, sil_f[:1]]), axis=0), axis=1).sum())
+    corr = max(1.0, CORR_LENGTH_PX * k2 / max(perim, 1e-9))
+    return lopsided_floor_px2(fit.residuals_px[fit.inliers], th, float(fit.sigma_px), corr)
 
 
 def _fitted(cam, sig: _Signal, p2, R: float, sphere_radius_m: float) -> tuple[CandidateFit, float]:
@@ -431,13 +445,14 @@ def _fitted(cam, sig: _Signal, p2, R: float, sphere_radius_m: float) -> tuple[Ca
     limit = outline_rms_limit_px(R, width if support >= TIGHT_MIN_SUPPORT else np.nan)
     sigma_rel = fit.sigma_px * clean_rms_px(R) / limit
     score = float(np.clip(support, 0, 1) * np.exp(-max(0.0, sigma_rel - 0.3) / 0.7))
-    cov = cov + centre_floor_px2(fit.sigma_px, R, width, support >= TIGHT_MIN_SUPPORT) * np.eye(2)
+    limb = _lopsided_px2(fit, sil_f, centre, ok2, k2)
+    cov = cov + centre_floor_px2(fit.sigma_px, R, width, support >= TIGHT_MIN_SUPPORT, limb) * np.eye(2)
     res = CandidateFit(True, "", fit, centre, cov, sil_f, support, score, contrast,
                        float(sphere_radius_m / np.sin(fit.a_rad)))
     res.extras = {"edge_points": int(ok2.sum()), "inliers": int(fit.inliers.sum()),
                   "edge_rms_px": round(float(fit.sigma_px), 4), "support": round(support, 4),
                   "edge_contrast": round(float(contrast), 2),
-                  "edge_width_px": round(width, 3)}
+                  "edge_width_px": round(width, 3), "lopsided_limb_px": round(float(np.sqrt(limb)), 4)}
     visible = cam.in_image(sil_f, margin_px=0.05 * R + 8)
     outside_bad = _outside_mismatch(sig, sil_f[visible], outward_normals(sil_f, sil_f.mean(axis=0))[visible], R) \
         if visible.sum() >= 8 else 1.0
@@ -447,6 +462,7 @@ def _fitted(cam, sig: _Signal, p2, R: float, sphere_radius_m: float) -> tuple[Ca
     res.extras["outside_mismatch"] = round(outside_bad, 4)
     res.extras["outline_coverage"] = round(support, 3)
     return res, outside_bad
+
 
 
 def _judge(cam, res: CandidateFit, R: float, outside_bad: float, with_background: bool) -> None:

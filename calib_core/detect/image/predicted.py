@@ -42,6 +42,7 @@ from calib_core.detect.image.cone import (ConeFit, centre_uv_and_cov, normalize_
 from calib_core.detect.image.detect import CUT, NO_OUTLINE, prepare_background
 from calib_core.detect.image.apparent_range import cone_range_sigma_m, outline_range_floor_m
 from calib_core.detect.image.edges import edge_widths, gradient_magnitude, outward_normals
+from calib_core.detect.image.limb import lopsided_floor_px2
 from calib_core.detect.image.fit import (BLUR_MAX_RADIUS_FRACTION, BLUR_SCALES_PX, CORR_LENGTH_PX, EDGE_NOISE_FACTOR,
                                          EDGE_SPACING_PX, SMALL_RADIUS_PX, SMOOTH_SIGMA_PX, _Signal, centre_floor_px2,
                                          clean_rms_px)
@@ -222,6 +223,7 @@ class _Reading:
     edge_width_px: float  # median FWHM of the outline's edges (smoothing taken out)
     smooth_px: float
     smear: object | None = None  # the motion smear measured, when read as one (image.smear.Smear)
+    lopsided_px2: float = 0.0  # the lopsided limb's floor (image.limb), from the fit's residuals
 
 
 def _read(cam, sig: _Signal, w0, a0: float, band: float, max_shift_q: float, seed: int,
@@ -253,7 +255,10 @@ def _read(cam, sig: _Signal, w0, a0: float, band: float, max_shift_q: float, see
     if fit is None:
         return None
     width = float(np.median(widths[keep][fit.inliers])) if fit.inliers.any() else float("nan")
-    return _Reading(fit, float(fit.inliers.sum()) / max(k, 1), k, q, normal_of, (e1, e2), width, smooth_px, sm)
+    around = q[keep][fit.inliers] - circ[0]
+    limb = lopsided_floor_px2(fit.residuals_px[fit.inliers], np.arctan2(around[:, 1], around[:, 0]),
+                              float(fit.sigma_px), CORR_LENGTH_PX / EDGE_SPACING_PX)
+    return _Reading(fit, float(fit.inliers.sum()) / max(k, 1), k, q, normal_of, (e1, e2), width, smooth_px, sm, limb)
 
 
 def _smoothed(cam, sig: _Signal, w0, a0: float, band: float, max_shift_q: float, seed: int, R: float,
@@ -366,7 +371,7 @@ def _verdict(cam, reading: _Reading, R: float, sphere_radius_m: float, uv_px) ->
         return _not_found(f"outline {100 * (1 - support):.0f} % hidden or too faint {WHERE} {where}", **extras)
     r_px = float(np.mean(np.linalg.norm(sil - sil.mean(axis=0), axis=1)))
     # a blurred outline's plateau: the free search's systematic floor (image.blur), same rule
-    cov = cov + centre_floor_px2(fit.sigma_px, r_px, reading.edge_width_px) * np.eye(2)
+    cov = cov + centre_floor_px2(fit.sigma_px, r_px, reading.edge_width_px, lopsided_px2=reading.lopsided_px2) * np.eye(2)
     range_m = float(sphere_radius_m / np.sin(fit.a_rad))
     rng_sigma = float(np.linalg.norm([cone_range_sigma_m(sphere_radius_m, fit.a_rad, fit.cov_params[2, 2]),
                                       blur_range_floor_m(range_m, r_px, reading.edge_width_px),
