@@ -464,7 +464,6 @@ def _fitted(cam, sig: _Signal, p2, R: float, sphere_radius_m: float) -> tuple[Ca
     return res, outside_bad
 
 
-
 def _judge(cam, res: CandidateFit, R: float, outside_bad: float, with_background: bool) -> None:
     """Set ``res.credible``, ``res.ok`` and ``res.reason``: cut by the border, not round,
     mostly hidden, or inside a larger object."""
