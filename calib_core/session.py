@@ -102,6 +102,9 @@ def resolve_inside(root: Path, rel, manifest: Path, what: str) -> Path:
         raise SessionError(manifest, f"{what}: expected a relative path, got {short_repr(rel)}")
     if "\x00" in rel:
         raise SessionError(manifest, f"{what}: path holds a NUL character")
+    if _has_control(rel):
+        raise SessionError(manifest, f"{what}: path {short_repr(rel)} holds control characters (a newline, an escape "
+                                     "or a bidi override): rename the file")
     p = Path(rel)
     if p.is_absolute() or (len(rel) > 1 and rel[1] == ":") or rel.startswith("\\"):
         raise SessionError(manifest, f"{what}: absolute path '{rel}' is not allowed; paths are relative to the session folder")

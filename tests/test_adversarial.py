@@ -160,6 +160,12 @@ def _npy_claiming(shape) -> bytes:
     return buf.getvalue() + bytes(240)
 
 
+def _npy_bytes(arr: np.ndarray) -> bytes:
+    buf = io.BytesIO()
+    np.save(buf, arr)
+    return buf.getvalue()
+
+
 def _ascii_ply(rows: list[str], n: int | None = None) -> bytes:
     head = (f"ply\nformat ascii 1.0\nelement vertex {len(rows) if n is None else n}\n"
             "property float x\nproperty float y\nproperty float z\nend_header\n")
@@ -187,6 +193,16 @@ def _detections_with_extra(root: Path, extra: str) -> None:
     (root / "detections.yaml").write_text(
         "format: sonar-camera-detections/1\n" + extra +
         "captures:\n  p01:\n    sonar: {status: rejected}\n")
+
+
+def _corrupt_background_named_badly(root: Path, _) -> None:
+    """A background folder holding a corrupt frame whose file name holds a newline, an OSC
+    title escape and a bidi override: the refusal must name it on one line, escaped."""
+    bg = root / "backgrounds" / "cam1"
+    bg.mkdir(parents=True)
+    (bg / "bg0.png").write_bytes((root / "images" / "cam1" / "p01.png").read_bytes())
+    (bg / "bg1\x1b]0;owned\x07\u202e\nerror: forged.png").write_bytes(b"not an image")
+    _edit_manifest(root, lambda d: d["cameras"]["cam1"].update(background="backgrounds/cam1/"))
 
 
 # ---- the CLI cases --------------------------------------------------------------------
@@ -299,6 +315,8 @@ CASES: dict[str, Case] = {
     "LAS 1.4 with an extended VLR claiming 2**62 bytes": Case(lambda r, _: _set_cloud(r, "evlr.las", _las14_evlr_bomb()),
                                                              "evlr.las"),
     ".npy with a huge shape": Case(lambda r, _: _set_cloud(r, "huge.npy", _npy_claiming((10**12, 3))), "huge.npy"),
+    ".npy cloud of complex numbers": Case(lambda r, _: _set_cloud(r, "c.npy", _npy_bytes(np.ones((50, 3), complex))),
+                                          "c.npy", phrase="complex128"),
     "text cloud that is one endless line": Case(lambda r, _: _set_cloud(r, "line.xyz", b"1 " * 400_000), "line.xyz"),
     # symlinks and writes outside the session
     "symlinked image outside": Case(lambda r, o: (
@@ -324,6 +342,11 @@ CASES: dict[str, Case] = {
     "export reading a calibration through results/ symlink": Case(
         lambda r, o: (_write_calibration(r), _relink_results(r, o / "res")), "calibration.json", "export --format json",
         phrase="outside the session folder"),
+    # names that would forge lines or drive the terminal when a message shows them (session 25, sec)
+    "image path with a newline and an escape": Case(lambda r, _: _edit_manifest(r, lambda d: d["captures"][0][
+        "images"].update(cam1="images/cam1/a\x1b]0;owned\x07\nerror: forged.png")), "session.yaml",
+        phrase="control characters"),
+    "corrupt background frame named with a newline": Case(_corrupt_background_named_badly, "forged.png", "detect"),
     "info with detections.yaml symlinked out": Case(lambda r, o: (
         (o / "det.yaml").write_text("format: sonar-camera-detections/1\ncaptures: {}\n"),
         os.symlink(o / "det.yaml", r / "detections.yaml")), "detections.yaml", phrase="outside the session folder"),
@@ -389,6 +412,7 @@ def test_cli_case_is_refused_in_one_line(results, name):
     assert len(lines) == 1, detail
     assert case.file in lines[0] and case.phrase.lower() in lines[0].lower(), detail
     assert "Traceback" not in r["err"] + r["out"] and "MemoryError" not in r["err"], detail
+    assert "\x1b" not in r["err"] and "\u202e" not in r["err"], detail  # no terminal escape from a name
     assert 0 < r["peak_kb"] < PEAK_LIMIT_KB, f"peak memory {r['peak_kb'] / 1024:.0f} MB"
     assert 0 <= r["cpu"] < CPU_LIMIT_S, f"{r['cpu']:.1f} s of CPU"
     assert r["root_same"] and r["parent_same"], "a file changed or appeared in or beside the session"
