@@ -166,6 +166,17 @@ def _npy_bytes(arr: np.ndarray) -> bytes:
     return buf.getvalue()
 
 
+def _ply_vertex_list(root: Path) -> bytes:
+    """p01's points with a list property after x y z whose first row claims 4e9 floats: open3d
+    printed an RPly error on stderr and returned one true point and garbage rows (exit 0)."""
+    from calib_core.io.clouds import load_cloud
+
+    pts = load_cloud(root / "clouds" / "p01.ply").points_m.astype("<f4")
+    head = (f"ply\nformat binary_little_endian 1.0\nelement vertex {len(pts)}\nproperty float x\nproperty float y\n"
+            "property float z\nproperty list uint float junk\nend_header\n").encode()
+    return head + b"".join(p.tobytes() + struct.pack("<I", 4_000_000_000) for p in pts)
+
+
 def _ascii_ply(rows: list[str], n: int | None = None) -> bytes:
     head = (f"ply\nformat ascii 1.0\nelement vertex {len(rows) if n is None else n}\n"
             "property float x\nproperty float y\nproperty float z\nend_header\n")
@@ -310,6 +321,8 @@ CASES: dict[str, Case] = {
     "binary PLY with a huge face element": Case(lambda r, _: _set_cloud(r, "faces.ply", (r / "clouds" / "p01.ply")
                                                                         .read_bytes().replace(
         b"end_header", b"element face 4000000000\nproperty list uchar int vertex_indices\nend_header", 1)), "faces.ply"),
+    "binary PLY with a list property in the vertices, lying length": Case(lambda r, _: _set_cloud(
+        r, "listy.ply", _ply_vertex_list(r)), "listy.ply", phrase="list property"),
     "PCD with SIZE 0 fields": Case(lambda r, _: _set_cloud(r, "z.pcd", _pcd("binary", 10**8, b"").replace(
         b"SIZE 4 4 4", b"SIZE 0 0 0")), "z.pcd"),
     "LAS 1.4 with an extended VLR claiming 2**62 bytes": Case(lambda r, _: _set_cloud(r, "evlr.las", _las14_evlr_bomb()),
