@@ -177,6 +177,15 @@ def _ply_vertex_list(root: Path) -> bytes:
     return head + b"".join(p.tobytes() + struct.pack("<I", 4_000_000_000) for p in pts)
 
 
+def _ply_count_lying_low(root: Path) -> bytes:
+    """p01.ply (binary, vertices only) with its vertex count set to 10: 290 points were dropped
+    without a word."""
+    data = (root / "clouds" / "p01.ply").read_bytes()
+    i = data.index(b"element vertex ")
+    j = data.index(b"\n", i)
+    return data[:i] + b"element vertex 10" + data[j:]
+
+
 def _ascii_ply(rows: list[str], n: int | None = None) -> bytes:
     head = (f"ply\nformat ascii 1.0\nelement vertex {len(rows) if n is None else n}\n"
             "property float x\nproperty float y\nproperty float z\nend_header\n")
@@ -323,6 +332,10 @@ CASES: dict[str, Case] = {
         b"end_header", b"element face 4000000000\nproperty list uchar int vertex_indices\nend_header", 1)), "faces.ply"),
     "binary PLY with a list property in the vertices, lying length": Case(lambda r, _: _set_cloud(
         r, "listy.ply", _ply_vertex_list(r)), "listy.ply", phrase="list property"),
+    "binary PLY whose count lies low (10 of 300 rows)": Case(lambda r, _: _set_cloud(r, "low.ply", _ply_count_lying_low(r)),
+                                                            "low.ply", phrase="point count"),
+    "binary PCD whose count lies low (10 of 100 rows)": Case(lambda r, _: _set_cloud(
+        r, "low.pcd", _pcd("binary", 10, np.ones((100, 3), "<f4").tobytes())), "low.pcd", phrase="point count"),
     "PCD with SIZE 0 fields": Case(lambda r, _: _set_cloud(r, "z.pcd", _pcd("binary", 10**8, b"").replace(
         b"SIZE 4 4 4", b"SIZE 0 0 0")), "z.pcd"),
     "LAS 1.4 with an extended VLR claiming 2**62 bytes": Case(lambda r, _: _set_cloud(r, "evlr.las", _las14_evlr_bomb()),

@@ -15,6 +15,7 @@ from calib_core.errors import SessionError
 _PLY_SIZES = {"char": 1, "int8": 1, "uchar": 1, "uint8": 1, "short": 2, "int16": 2, "ushort": 2, "uint16": 2,
               "int": 4, "int32": 4, "uint": 4, "uint32": 4, "float": 4, "float32": 4, "double": 8, "float64": 8}
 _HEAD_BYTES = 65536
+_TRAILING_SLACK = 2  # a final newline ("\n" or "\r\n") some writers add after binary data
 
 
 def check_cloud_header(path: Path) -> int:
@@ -111,6 +112,17 @@ def _check_ply_binary(path: Path, elements: list, header_len: int, size: int) ->
             break
     if size < need:
         raise SessionError(path, f"file is truncated: {size} bytes, its header needs at least {need}")
+    if all(props is not None for _, _, props in elements):
+        _check_no_extra_rows(path, size - need, elements[-1][0] == "vertex")
+
+
+def _check_no_extra_rows(path: Path, extra: int, vertices_last: bool) -> None:
+    """More bytes than the header declares: a count that lies low would silently drop the
+    points after it (``vertices_last``: the extra bytes follow the vertex rows)."""
+    if extra > _TRAILING_SLACK:
+        where = "after the points its header declares" if vertices_last else "after the rows its header declares"
+        raise SessionError(path, f"file holds {extra} bytes {where}: the point count in the header is wrong "
+                                 "(or the file was appended to)")
 
 
 def _check_ply_ascii(path: Path, elements: list, vertex: list, header_len: int) -> None:
@@ -143,6 +155,7 @@ def _check_pcd(path: Path, head: bytes) -> int:
         need = header_len + n * row_bytes
         if size < need:
             raise SessionError(path, f"file is truncated: {size} bytes, its header needs at least {need}")
+        _check_no_extra_rows(path, size - need, True)
     elif kind == "binary_compressed":
         _check_pcd_compressed(path, header_len, n, row_bytes, size)
     elif kind == "ascii":
