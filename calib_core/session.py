@@ -323,15 +323,17 @@ def _mapping(manifest: Path, value, what: str) -> dict:
 def parse_transform(path: Path, value, what: str) -> np.ndarray:
     """Validate a 4x4 rigid transform given as nested lists."""
     if isinstance(value, (str, bytes)):
-        raise SessionError(path, f"{what} must be a 4x4 matrix of numbers")
+        raise SessionError(path, f"{what} must be a finite 4x4 matrix of numbers")
     try:
         T = np.asarray(value, dtype=float)
     except (TypeError, ValueError, OverflowError, RecursionError):
-        raise SessionError(path, f"{what} must be a 4x4 matrix of numbers") from None
+        raise SessionError(path, f"{what} must be a finite 4x4 matrix of numbers") from None
     if T.shape != (4, 4) or not np.isfinite(T).all():
         raise SessionError(path, f"{what} must be a finite 4x4 matrix, got shape {T.shape}")
     R = T[:3, :3]
-    if not np.allclose(R @ R.T, np.eye(3), atol=1e-5) or np.linalg.det(R) < 0 or not np.allclose(T[3], [0, 0, 0, 1]):
+    with np.errstate(all="ignore"):  # 1e308 entries overflow R R^T: not rigid, said below, no numpy warning
+        rigid = np.allclose(R @ R.T, np.eye(3), atol=1e-5) and np.linalg.det(R) > 0
+    if not rigid or not np.allclose(T[3], [0, 0, 0, 1]):
         raise SessionError(path, f"{what} is not a rigid transform (rotation not orthonormal or last row not 0 0 0 1)")
     return T
 

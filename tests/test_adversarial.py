@@ -293,6 +293,13 @@ CASES: dict[str, Case] = {
     "calibration.json nested 100k deep": Case(lambda r, _: (_write_calibration(r), (r / "results" / "calibration.json")
                                                             .write_text("[" * 100000 + "]" * 100000)),
                                               "calibration.json", "export --format json"),
+    "calibration.json with a 1e308 transform (report)": Case(lambda r, _: _write_calibration(r, [[1e308] * 4] * 4),
+                                                            "calibration.json", "report", phrase="rigid"),
+    "calibration.json with a 1e308 transform (plan)": Case(lambda r, _: _write_calibration(r, [[1e308] * 4] * 4),
+                                                          "calibration.json", "plan", phrase="rigid"),
+    "detections.yaml with a centre at 1e308 m (report)": Case(lambda r, _: (
+        r / "detections.yaml").write_text("format: sonar-camera-detections/1\ncaptures:\n  p01:\n    sonar: "
+                                          "{center: [1.0e+308, 0, 1.6], status: accepted}\n"), "detections.yaml", "report"),
     "session.yaml of 100 MB": Case(lambda r, _: open(r / "session.yaml", "ab").truncate(100 * 2**20), "session.yaml"),
     # image headers
     "JPEG claiming 30000 x 30000": Case(lambda r, _: _set_image(r, "big.jpg", _jpeg_claiming(30000, 30000)), "big.jpg"),
@@ -379,11 +386,12 @@ CASES: dict[str, Case] = {
 }
 
 
-def _write_calibration(root: Path) -> None:
+def _write_calibration(root: Path, T=None) -> None:
     from calib_core.results import CALIBRATION_FORMAT, save_calibration
 
+    T = np.eye(4).tolist() if T is None else T
     save_calibration(root / "results" / "calibration.json",
-                     {"format": CALIBRATION_FORMAT, "cameras": {"cam1": {"T_cam_sonar": np.eye(4).tolist()}}})
+                     {"format": CALIBRATION_FORMAT, "cameras": {"cam1": {"T_cam_sonar": T}}})
 
 
 def _relink_results(root: Path, outside: Path) -> None:
