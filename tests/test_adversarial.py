@@ -572,7 +572,8 @@ def _zip_bytes(entries: dict[str, bytes], symlink: str | None = None) -> bytes:
     return buf.getvalue()
 
 
-@pytest.mark.parametrize("kind", ["bomb", "symlink", "dotdot", "absolute", "not a zip", "duplicate", "file as folder"])
+@pytest.mark.parametrize("kind", ["bomb", "symlink", "dotdot", "absolute", "not a zip", "duplicate", "file as folder",
+                                  "long name", "deep path", "control characters"])
 def test_hostile_zips_are_refused_and_leave_nothing(tmp_path, kind):
     from app.uploads import safe_unpack_zip
     from calib_core.errors import SessionError
@@ -584,7 +585,12 @@ def test_hostile_zips_are_refused_and_leave_nothing(tmp_path, kind):
             "absolute": lambda: _zip_bytes({"/tmp/evil.txt": b"x"}),
             "not a zip": lambda: b"PK\x03\x04" + os.urandom(2000),
             "duplicate": _dup_zip,
-            "file as folder": lambda: _zip_bytes({"session.yaml": b"a: 1", "a": b"x", "a/b": b"y"})}[kind]()
+            "file as folder": lambda: _zip_bytes({"session.yaml": b"a: 1", "a": b"x", "a/b": b"y"}),
+            # session 25 (sec): an OSError (name too long) escaped instead of a SessionError;
+            # a name with a newline and an escape was unpacked as it was
+            "long name": lambda: _zip_bytes({"session.yaml": b"a: 1", "x" * 300: b"1"}),
+            "deep path": lambda: _zip_bytes({"session.yaml": b"a: 1", "a/" * 3000 + "f": b"1"}),
+            "control characters": lambda: _zip_bytes({"session.yaml": b"a: 1", "bad\nname\x1b[31m.png": b"1"})}[kind]()
     zpath.write_bytes(data)
     dest = tmp_path / "uploads"
     with pytest.raises(SessionError) as ei:
