@@ -37,8 +37,11 @@ def command_module(name: str) -> str:
 
 
 def _quiet_native_logs() -> None:
-    """OpenCV logs decoder warnings ("PNG input buffer is incomplete") straight to stderr;
-    our SessionError already says what is wrong, in one line naming the file."""
+    """OpenCV logs decoder warnings ("PNG input buffer is incomplete") straight to stderr, and its
+    FFmpeg backend its own errors ("moov atom not found" for a broken video, read from the variable
+    at the first VideoCapture); our SessionError already says what is wrong, in one line naming the file."""
+    if not os.environ.get("SONARCAL_DEBUG"):
+        os.environ.setdefault("OPENCV_FFMPEG_LOGLEVEL", "-8")  # AV_LOG_QUIET
     try:
         import cv2
 

@@ -225,6 +225,14 @@ def _corrupt_background_named_badly(root: Path, _) -> None:
     _edit_manifest(root, lambda d: d["cameras"]["cam1"].update(background="backgrounds/cam1/"))
 
 
+def _background_video(root: Path, data: bytes) -> None:
+    """cam1's background is a video file holding ``data``: OpenCV's FFmpeg backend printed
+    "[mov,mp4,...] moov atom not found" on stderr above our one line."""
+    (root / "backgrounds").mkdir()
+    (root / "backgrounds" / "bg.mp4").write_bytes(data)
+    _edit_manifest(root, lambda d: d["cameras"]["cam1"].update(background="backgrounds/bg.mp4"))
+
+
 # ---- the CLI cases --------------------------------------------------------------------
 @dataclass(frozen=True)
 class Case:
@@ -380,6 +388,9 @@ CASES: dict[str, Case] = {
         "images"].update(cam1="images/cam1/a\x1b]0;owned\x07\nerror: forged.png")), "session.yaml",
         phrase="control characters"),
     "corrupt background frame named with a newline": Case(_corrupt_background_named_badly, "forged.png", "detect"),
+    "background video that is not a video (FFmpeg's own log line)": Case(
+        lambda r, _: _background_video(r, b"not a video\n" * 100), "bg.mp4", "detect"),
+    "background video of 0 bytes": Case(lambda r, _: _background_video(r, b""), "bg.mp4", "detect", phrase="empty"),
     "info with detections.yaml symlinked out": Case(lambda r, o: (
         (o / "det.yaml").write_text("format: sonar-camera-detections/1\ncaptures: {}\n"),
         os.symlink(o / "det.yaml", r / "detections.yaml")), "detections.yaml", phrase="outside the session folder"),
