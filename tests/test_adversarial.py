@@ -186,6 +186,18 @@ def _ply_count_lying_low(root: Path) -> bytes:
     return data[:i] + b"element vertex 10" + data[j:]
 
 
+def _las_count_lying_low(root: Path) -> bytes:
+    """p01's points written by laspy, the header's point count then set to 10 (of 300)."""
+    from calib_core.io.clouds import Cloud, load_cloud, save_cloud
+
+    tmp = root.parent / "outside" / "real.las"
+    save_cloud(tmp, Cloud(load_cloud(root / "clouds" / "p01.ply").points_m[:300], None))
+    data = bytearray(tmp.read_bytes())
+    tmp.unlink()
+    struct.pack_into("<I", data, 107, 10)
+    return bytes(data)
+
+
 def _ascii_ply(rows: list[str], n: int | None = None) -> bytes:
     head = (f"ply\nformat ascii 1.0\nelement vertex {len(rows) if n is None else n}\n"
             "property float x\nproperty float y\nproperty float z\nend_header\n")
@@ -351,6 +363,8 @@ CASES: dict[str, Case] = {
                                                             "low.ply", phrase="point count"),
     "binary PCD whose count lies low (10 of 100 rows)": Case(lambda r, _: _set_cloud(
         r, "low.pcd", _pcd("binary", 10, np.ones((100, 3), "<f4").tobytes())), "low.pcd", phrase="point count"),
+    "LAS whose count lies low (10 of 300 records)": Case(lambda r, _: _set_cloud(r, "low.las", _las_count_lying_low(r)),
+                                                        "low.las", phrase="point count"),
     "PCD with SIZE 0 fields": Case(lambda r, _: _set_cloud(r, "z.pcd", _pcd("binary", 10**8, b"").replace(
         b"SIZE 4 4 4", b"SIZE 0 0 0")), "z.pcd"),
     "LAS 1.4 with an extended VLR claiming 2**62 bytes": Case(lambda r, _: _set_cloud(r, "evlr.las", _las14_evlr_bomb()),

@@ -49,12 +49,30 @@ def check_las_header(path: Path) -> int:
                                  f"need {n * rec_len} bytes, the file holds {data_bytes}")
     if compressed and n * rec_len > data_bytes * MAX_LAZ_RATIO:
         raise SessionError(path, f"LAZ header claims {n} points, far more than {data_bytes} compressed bytes can hold")
+    evlr_start = n_evlr = 0
     if minor >= 4 and len(head) >= 247:
         evlr_start, n_evlr = struct.unpack_from("<QI", head, 235)
         if n_evlr and (evlr_start > size or n_evlr * 60 > size - evlr_start):
             raise SessionError(path, f"LAS header is corrupt: {n_evlr} extended VLRs do not fit the file")
         _check_evlrs(path, evlr_start, n_evlr, size)
+    if not compressed:
+        _check_no_extra_records(path, head, minor, offset, n, rec_len, evlr_start if n_evlr else size, size)
     return int(n)
+
+
+def _check_no_extra_records(path: Path, head: bytes, minor: int, offset: int, n: int, rec_len: int,
+                            evlr_start: int, size: int) -> None:
+    """A whole point record more than the header declares, before whatever follows the points
+    (LAS 1.3 waveform data, LAS 1.4 extended VLRs): a count lying low silently dropped the rest."""
+    end = min(size, evlr_start)
+    if minor >= 3 and len(head) >= 235:
+        waveform_start = struct.unpack_from("<Q", head, 227)[0]
+        if offset < waveform_start < end:
+            end = waveform_start
+    extra = end - offset - n * rec_len
+    if extra >= rec_len:
+        raise SessionError(path, f"file holds {extra // rec_len} more point records than its header's point count "
+                                 f"({n}): the count is wrong (or the file was appended to)")
 
 
 def _check_evlrs(path: Path, start: int, count: int, size: int) -> None:
