@@ -198,6 +198,14 @@ def _las_count_lying_low(root: Path) -> bytes:
     return bytes(data)
 
 
+def _las_scaled(root: Path, scale: float) -> bytes:
+    """p01's points written by laspy, the header's three scale factors then set to ``scale``."""
+    data = bytearray(_las_count_lying_low(root))
+    struct.pack_into("<I", data, 107, 300)
+    struct.pack_into("<3d", data, 131, scale, scale, scale)
+    return bytes(data)
+
+
 def _ascii_ply(rows: list[str], n: int | None = None) -> bytes:
     head = (f"ply\nformat ascii 1.0\nelement vertex {len(rows) if n is None else n}\n"
             "property float x\nproperty float y\nproperty float z\nend_header\n")
@@ -365,6 +373,10 @@ CASES: dict[str, Case] = {
         r, "low.pcd", _pcd("binary", 10, np.ones((100, 3), "<f4").tobytes())), "low.pcd", phrase="point count"),
     "LAS whose count lies low (10 of 300 records)": Case(lambda r, _: _set_cloud(r, "low.las", _las_count_lying_low(r)),
                                                         "low.las", phrase="point count"),
+    "LAS with scale factors of 1e308 (laspy's overflow warnings)": Case(
+        lambda r, _: _set_cloud(r, "scale.las", _las_scaled(r, 1e308)), "scale.las", phrase="scale"),
+    "LAS with scale factors of 0 (every point at the offset)": Case(
+        lambda r, _: _set_cloud(r, "zero.las", _las_scaled(r, 0.0)), "zero.las", phrase="scale"),
     "PCD with SIZE 0 fields": Case(lambda r, _: _set_cloud(r, "z.pcd", _pcd("binary", 10**8, b"").replace(
         b"SIZE 4 4 4", b"SIZE 0 0 0")), "z.pcd"),
     "LAS 1.4 with an extended VLR claiming 2**62 bytes": Case(lambda r, _: _set_cloud(r, "evlr.las", _las14_evlr_bomb()),

@@ -43,6 +43,7 @@ def check_las_header(path: Path) -> int:
                                  f"do not fit a {size}-byte file")
     if n > MAX_CLOUD_POINTS:
         raise SessionError(path, f"LAS header claims {n} points: more than the {MAX_CLOUD_POINTS} this tool loads")
+    _check_scale_offset(path, head)
     data_bytes = size - offset
     if not compressed and n * rec_len > data_bytes:
         raise SessionError(path, f"file is truncated or its header is corrupt: {n} points of {rec_len} bytes "
@@ -73,6 +74,22 @@ def _check_no_extra_records(path: Path, head: bytes, minor: int, offset: int, n:
     if extra >= rec_len:
         raise SessionError(path, f"file holds {extra // rec_len} more point records than its header's point count "
                                  f"({n}): the count is wrong (or the file was appended to)")
+
+
+MAX_LAS_SCALE = 1e3  # metres per integer step; real files use 1e-4 to 1
+MAX_LAS_OFFSET = 1e9  # metres; UTM or ECEF offsets are below 1e7
+
+
+def _check_scale_offset(path: Path, head: bytes) -> None:
+    """Scale factors and offsets that make coordinates at all (scale 0: every point at the offset;
+    1e308: overflow warnings from laspy on stderr and infinite points)."""
+    scale, offset = np.array(struct.unpack_from("<3d", head, 131)), np.array(struct.unpack_from("<3d", head, 155))
+    with np.errstate(invalid="ignore"):
+        ok = (np.abs(scale) > 0).all() and (np.abs(scale) <= MAX_LAS_SCALE).all() \
+            and (np.abs(offset) <= MAX_LAS_OFFSET).all()
+    if not ok:
+        raise SessionError(path, f"LAS header is corrupt: scale factors {scale.tolist()} and offsets {offset.tolist()} "
+                                 f"(scale 0 < |s| <= {MAX_LAS_SCALE:g}, offsets at most {MAX_LAS_OFFSET:.0e} m)")
 
 
 def _check_evlrs(path: Path, start: int, count: int, size: int) -> None:
