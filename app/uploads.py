@@ -18,7 +18,8 @@ import zipfile
 import zlib
 from pathlib import Path, PurePosixPath
 
-from calib_core.errors import SessionError
+from calib_core.errors import SessionError, short_repr
+from calib_core.session import has_control
 
 log = logging.getLogger("sonarcal.app")
 
@@ -43,9 +44,17 @@ def oversize_problem(size: int, max_bytes: int = MAX_UPLOAD_BYTES) -> str:
     return f"upload is {mb_text(size)}; the limit is {mb_text(max_bytes)}"
 
 
+MAX_MEMBER_NAME = 1024  # characters of a whole entry name; each folder or file name at most NAME_MAX bytes
+NAME_MAX = 255
+
+
 def _safe_member_path(name: str, where: Path) -> PurePosixPath:
     if "\x00" in name:
         raise SessionError(where, "archive entry name holds a NUL character")
+    if has_control(name):  # a newline or escape would reach file names, messages and the page
+        raise SessionError(where, f"archive entry {short_repr(name)} has control characters in its name")
+    if len(name) > MAX_MEMBER_NAME or any(len(part.encode()) > NAME_MAX for part in name.replace("\\", "/").split("/")):
+        raise SessionError(where, f"archive entry {short_repr(name)} has a name longer than file systems allow")
     norm = name.replace("\\", "/")
     if norm.startswith("/") or (len(norm) > 1 and norm[1] == ":"):
         raise SessionError(where, f"archive entry '{name}' has an absolute path")

@@ -8,7 +8,9 @@ them one after the other in one child process (``tests/adversarial_launch.py``: 
 address-space limit, the peak-RSS mark reset before each case). "peak MB" is the child's
 VmHWM during the case, interpreter and readers included (about 90-190 MB of it is
 Python, numpy, OpenCV and open3d already imported); "CPU s" is the CPU time the case
-used. Targets (issue 14): exit 2 with one line naming the file, peak < 500 MB, < 10 s.
+used; "unchanged" says whether the session folder and its parent hashed the same after the
+case (nothing written, created or half-written). Targets (issue 14): exit 2 with one line naming
+the file, no terminal escape on stderr, peak < 500 MB, < 10 s, session unchanged.
 """
 
 from __future__ import annotations
@@ -25,7 +27,14 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "tests"))
 
+from conftest import tree_hash  # noqa: E402
 from test_adversarial import CASES, LAUNCHER, _child_env, _prepare  # noqa: E402
+
+
+def file_kind(name: str) -> str:
+    """The kind of file a case attacks, from the file it must name."""
+    suffix = Path(name.rstrip("/")).suffix.lower().lstrip(".")
+    return {"yaml": "YAML", "json": "JSON", "": "folder"}.get(suffix, suffix.upper() or name)
 
 
 def main() -> int:
@@ -41,16 +50,20 @@ def main() -> int:
             print(r.stderr[-2000:])
             return 1
         res = json.loads((base / "results.json").read_text())
+        for p in prepared:
+            res[p["name"]]["same"] = (tree_hash(p["root"]) == p["before_root"]
+                                      and tree_hash(p["parent"]) == p["before_parent"])
     ok_all = True
-    print(f"| case | exit | one line naming the file | peak MB | CPU s | met |\n|---|---|---|---|---|---|")
+    print("| file kind | attack | exit | one line naming the file | peak MB | CPU s | session unchanged | met |\n"
+          "|---|---|---|---|---|---|---|---|")
     for name, case in CASES.items():
         v = res[name]
         lines = [ln for ln in v["err"].splitlines() if ln.strip() and not ln.endswith("problem(s):")]
-        one = len(lines) == 1 and case.file in lines[0] and "Traceback" not in v["err"]
-        met = v["rc"] == 2 and one and v["peak_kb"] < 500 * 1024 and v["cpu"] < 10
+        one = len(lines) == 1 and case.file in lines[0] and "Traceback" not in v["err"] and "\x1b" not in v["err"]
+        met = v["rc"] == 2 and one and v["peak_kb"] < 500 * 1024 and v["cpu"] < 10 and v["same"]
         ok_all &= met
-        print(f"| {name} | {v['rc']} | {'yes' if one else 'NO'} | {v['peak_kb'] / 1024:.0f} | {v['cpu']:.2f} | "
-              f"{'met' if met else 'MISSED'} |")
+        print(f"| {file_kind(case.file)} | {name} | {v['rc']} | {'yes' if one else 'NO'} | {v['peak_kb'] / 1024:.0f} | "
+              f"{v['cpu']:.2f} | {'yes' if v['same'] else 'NO'} | {'met' if met else 'MISSED'} |")
     peak = max(v["peak_kb"] for v in res.values()) / 1024
     cpu = max(v["cpu"] for v in res.values())
     print(f"\n{len(CASES)} cases, all targets {'met' if ok_all else 'NOT met'}; worst peak {peak:.0f} MB, "

@@ -72,8 +72,9 @@ def _check_entry(path: Path, what: str, e, dim: int) -> dict:
     e["status"] = status
     c = e.get("center")
     if c is not None:
-        if not isinstance(c, list) or len(c) != dim or not all(_finite_number(v) for v in c):
-            raise SessionError(path, f"{what}.center must be {dim} finite numbers, got {short_repr(c)}")
+        if not _numbers(c, dim):
+            raise SessionError(path, f"{what}.center must be {dim} finite numbers (metres or pixels, at most "
+                                     f"{MAX_ABS_VALUE:.0e}), got {short_repr(c)}")
         e["center"] = [float(v) for v in c]
     elif status in ("accepted", "corrected"):
         raise SessionError(path, f"{what} is '{status}' but has no center")
@@ -103,8 +104,13 @@ _RANGE_KEYS = ("range_m", "partial_range_m")
 _ROW_KEYS = ("two_candidates", "other_candidates")  # rows (u, v, range_m) or (x, y, z)
 
 
+# a coordinate in metres or pixels beyond this is no measurement: 1e308 is "finite" yet overflowed
+# the report's projections and the solver's norms (an internal error instead of one line)
+MAX_ABS_VALUE = 1e6
+
+
 def _numbers(v, n: int) -> bool:
-    return isinstance(v, list) and len(v) == n and all(_finite_number(x) for x in v)
+    return isinstance(v, list) and len(v) == n and all(_finite_number(x) and abs(float(x)) <= MAX_ABS_VALUE for x in v)
 
 
 def _check_geometry(path: Path, what: str, e: dict) -> None:
@@ -116,7 +122,7 @@ def _check_geometry(path: Path, what: str, e: dict) -> None:
         e["score"] = float(v)
     for key in _RANGE_KEYS:
         if e.get(key) is not None:
-            if not (_finite_number(e[key]) and float(e[key]) > 0):
+            if not (_finite_number(e[key]) and 0 < float(e[key]) <= MAX_ABS_VALUE):
                 raise SessionError(path, f"{what}.{key} must be a positive number (m), got {short_repr(e[key])}")
             e[key] = float(e[key])
     v = e.get("partial_center_uv_px")

@@ -20,7 +20,20 @@ class SessionError(Exception):
     def __init__(self, path: str | Path | None, problem: str):
         self.path = None if path is None else Path(path)
         self.problem = problem
-        super().__init__(f"{self.path}: {problem}" if self.path is not None else problem)
+        super().__init__(one_line(f"{self.path}: {problem}" if self.path is not None else problem))
+
+
+def one_line(text) -> str:
+    """``text`` as one line a terminal shows as it is: every control or format character (newline,
+    ESC, bidi override, zero-width) written as its escape (``\\n``, ``\\x1b``, ``\\u202e``).
+
+    File names are chosen by whoever made the files: a name holding a newline or an escape
+    sequence would otherwise forge a second message line or recolour, retitle or hyperlink the
+    user's terminal when the name is shown in a message."""
+    text = text if isinstance(text, str) else str(text)
+    if text.isprintable():
+        return text
+    return "".join(ch if ch.isprintable() or ch == " " else repr(ch)[1:-1] for ch in text)
 
 
 class Cancelled(Exception):

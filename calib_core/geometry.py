@@ -68,3 +68,13 @@ def look_at_T_cam_world(eye_world_m, target_world_m, up_world=(0.0, 0.0, 1.0)) -
     y = np.cross(z, x)
     R_world_cam = np.column_stack([x, y, z])
     return invert_T(make_T(R_world_cam, eye))
+
+
+def is_rigid(T: np.ndarray, atol: float = 1e-5) -> bool:
+    """True when the finite 4x4 ``T`` is a rigid transform: an orthonormal, right-handed rotation
+    and a last row of 0 0 0 1. Huge entries (1e308) overflow R R^T: not rigid, and no numpy warning."""
+    T = np.asarray(T, dtype=float)
+    R = T[:3, :3]
+    with np.errstate(all="ignore"):
+        return bool(np.allclose(R @ R.T, np.eye(3), atol=atol) and np.linalg.det(R) > 0
+                    and np.allclose(T[3], [0, 0, 0, 1]))

@@ -33,8 +33,6 @@ def save_calibration(path: str | Path, result: dict, root=None, explicit: bool =
 
 def load_calibration(path: str | Path) -> dict:
     """Read a calibration.json, with clear errors for missing/corrupt files."""
-    import numpy as np
-
     path = Path(path)
     if not path.is_file():
         raise SessionError(path, "calibration file not found (run 'sonarcal calibrate' first)")
@@ -51,6 +49,10 @@ def load_calibration(path: str | Path) -> dict:
         raise SessionError(path, f"cannot read the calibration file: {e.strerror or e}") from None
     if not isinstance(data, dict) or data.get("format") != CALIBRATION_FORMAT or not isinstance(data.get("cameras"), dict):
         raise SessionError(path, f"not a {CALIBRATION_FORMAT} file (needs 'format' and a 'cameras' mapping)")
+    import numpy as np
+
+    from calib_core.geometry import is_rigid
+
     for cam, c in data["cameras"].items():
         try:
             T = np.asarray(c.get("T_cam_sonar"), dtype=float) if isinstance(c, dict) else None
@@ -58,4 +60,7 @@ def load_calibration(path: str | Path) -> dict:
             T = None
         if T is None or T.shape != (4, 4) or not np.isfinite(T).all():
             raise SessionError(path, f"cameras.{short_repr(cam)}.T_cam_sonar must be a finite 4x4 matrix")
+        if not is_rigid(T):  # 1e308 entries are finite, and overflowed the report and plan
+            raise SessionError(path, f"cameras.{short_repr(cam)}.T_cam_sonar is not a rigid transform (rotation "
+                                     "not orthonormal or last row not 0 0 0 1)")
     return data

@@ -26,6 +26,7 @@ import numpy as np
 
 from calib_core.camera import CameraModel
 from calib_core.errors import SessionError, short_repr
+from calib_core.geometry import is_rigid
 from calib_core.io.confine import confine_write
 from calib_core.io.yaml_safe import read_yaml_mapping
 
@@ -102,6 +103,9 @@ def resolve_inside(root: Path, rel, manifest: Path, what: str) -> Path:
         raise SessionError(manifest, f"{what}: expected a relative path, got {short_repr(rel)}")
     if "\x00" in rel:
         raise SessionError(manifest, f"{what}: path holds a NUL character")
+    if has_control(rel):
+        raise SessionError(manifest, f"{what}: path {short_repr(rel)} holds control characters (a newline, an escape "
+                                     "or a bidi override): rename the file")
     p = Path(rel)
     if p.is_absolute() or (len(rel) > 1 and rel[1] == ":") or rel.startswith("\\"):
         raise SessionError(manifest, f"{what}: absolute path '{rel}' is not allowed; paths are relative to the session folder")
@@ -285,13 +289,13 @@ def _plain_text(manifest: Path, value, what: str, default: str) -> str:
     if isinstance(value, bool) or not isinstance(value, (str, int, float)):
         raise SessionError(manifest, f"{what} must be text, got a {type(value).__name__}")
     text = value if isinstance(value, str) else repr(value)
-    if len(text) > 200 or _has_control(text):
+    if len(text) > 200 or has_control(text):
         raise SessionError(manifest, f"{what} must be one line of text of at most 200 characters "
                                      "(no control characters)")
     return text
 
 
-def _has_control(text: str) -> bool:
+def has_control(text: str) -> bool:
     """Control or format characters (newlines, ESC, bidi overrides): they would forge lines in
     the terminal, in exported files and in tables."""
     return any(unicodedata.category(ch) in ("Cc", "Cf") or ch in "\u2028\u2029" for ch in text)
@@ -304,7 +308,7 @@ def _session_name(manifest: Path, value, default: str) -> str:
 def _check_name(manifest: Path, name: str, what: str) -> None:
     """Camera names and capture ids end up in file names (exports, thumbnails): no path tricks."""
     if not name.strip() or name in (".", "..") or any(ch in name for ch in "/\\\x00") or len(name) > 100 \
-            or _has_control(name):
+            or has_control(name):
         raise SessionError(manifest, f"{what} {short_repr(name)} is not allowed (no '/', '\\', '..', control "
                                      "characters, empty or over 100 characters)")
 
@@ -320,15 +324,14 @@ def _mapping(manifest: Path, value, what: str) -> dict:
 def parse_transform(path: Path, value, what: str) -> np.ndarray:
     """Validate a 4x4 rigid transform given as nested lists."""
     if isinstance(value, (str, bytes)):
-        raise SessionError(path, f"{what} must be a 4x4 matrix of numbers")
+        raise SessionError(path, f"{what} must be a finite 4x4 matrix of numbers")
     try:
         T = np.asarray(value, dtype=float)
     except (TypeError, ValueError, OverflowError, RecursionError):
-        raise SessionError(path, f"{what} must be a 4x4 matrix of numbers") from None
+        raise SessionError(path, f"{what} must be a finite 4x4 matrix of numbers") from None
     if T.shape != (4, 4) or not np.isfinite(T).all():
         raise SessionError(path, f"{what} must be a finite 4x4 matrix, got shape {T.shape}")
-    R = T[:3, :3]
-    if not np.allclose(R @ R.T, np.eye(3), atol=1e-5) or np.linalg.det(R) < 0 or not np.allclose(T[3], [0, 0, 0, 1]):
+    if not is_rigid(T):
         raise SessionError(path, f"{what} is not a rigid transform (rotation not orthonormal or last row not 0 0 0 1)")
     return T
 

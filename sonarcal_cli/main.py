@@ -15,7 +15,7 @@ import sys
 import traceback
 
 from calib_core import __version__
-from calib_core.errors import SessionError
+from calib_core.errors import SessionError, one_line
 
 COMMANDS = ["info", "synth", "detect", "calibrate", "intrinsics", "stereo", "serve", "export", "report", "import", "plan"]
 
@@ -37,8 +37,11 @@ def command_module(name: str) -> str:
 
 
 def _quiet_native_logs() -> None:
-    """OpenCV logs decoder warnings ("PNG input buffer is incomplete") straight to stderr;
-    our SessionError already says what is wrong, in one line naming the file."""
+    """OpenCV logs decoder warnings ("PNG input buffer is incomplete") straight to stderr, and its
+    FFmpeg backend its own errors ("moov atom not found" for a broken video, read from the variable
+    at the first VideoCapture); our SessionError already says what is wrong, in one line naming the file."""
+    if not os.environ.get("SONARCAL_DEBUG"):
+        os.environ.setdefault("OPENCV_FFMPEG_LOGLEVEL", "-8")  # AV_LOG_QUIET
     try:
         import cv2
 
@@ -69,7 +72,7 @@ def main(argv: list[str] | None = None) -> int:
         return 130
     except OSError as e:  # permission denied, disk full, read-only folder: the user can fix these
         where = e.filename if e.filename is not None else "file system"
-        print(f"error: {where}: {e.strerror or e}", file=sys.stderr)
+        print(one_line(f"error: {where}: {e.strerror or e}"), file=sys.stderr)
         return 2
     except MemoryError:
         print("error: out of memory (the input is too large for this machine)", file=sys.stderr)
@@ -77,7 +80,8 @@ def main(argv: list[str] | None = None) -> int:
     except Exception as e:  # a bug: say so in one line; full trace only on request
         if os.environ.get("SONARCAL_DEBUG"):
             traceback.print_exc()
-        print(f"internal error: {type(e).__name__}: {e} (set SONARCAL_DEBUG=1 for details; please report)", file=sys.stderr)
+        print(one_line(f"internal error: {type(e).__name__}: {e} (set SONARCAL_DEBUG=1 for details; please report)"),
+              file=sys.stderr)
         return 1
 
 

@@ -160,6 +160,52 @@ def _npy_claiming(shape) -> bytes:
     return buf.getvalue() + bytes(240)
 
 
+def _npy_bytes(arr: np.ndarray) -> bytes:
+    buf = io.BytesIO()
+    np.save(buf, arr)
+    return buf.getvalue()
+
+
+def _ply_vertex_list(root: Path) -> bytes:
+    """p01's points with a list property after x y z whose first row claims 4e9 floats: open3d
+    printed an RPly error on stderr and returned one true point and garbage rows (exit 0)."""
+    from calib_core.io.clouds import load_cloud
+
+    pts = load_cloud(root / "clouds" / "p01.ply").points_m.astype("<f4")
+    head = (f"ply\nformat binary_little_endian 1.0\nelement vertex {len(pts)}\nproperty float x\nproperty float y\n"
+            "property float z\nproperty list uint float junk\nend_header\n").encode()
+    return head + b"".join(p.tobytes() + struct.pack("<I", 4_000_000_000) for p in pts)
+
+
+def _ply_count_lying_low(root: Path) -> bytes:
+    """p01.ply (binary, vertices only) with its vertex count set to 10: 290 points were dropped
+    without a word."""
+    data = (root / "clouds" / "p01.ply").read_bytes()
+    i = data.index(b"element vertex ")
+    j = data.index(b"\n", i)
+    return data[:i] + b"element vertex 10" + data[j:]
+
+
+def _las_count_lying_low(root: Path) -> bytes:
+    """p01's points written by laspy, the header's point count then set to 10 (of 300)."""
+    from calib_core.io.clouds import Cloud, load_cloud, save_cloud
+
+    tmp = root.parent / "outside" / "real.las"
+    save_cloud(tmp, Cloud(load_cloud(root / "clouds" / "p01.ply").points_m[:300], None))
+    data = bytearray(tmp.read_bytes())
+    tmp.unlink()
+    struct.pack_into("<I", data, 107, 10)
+    return bytes(data)
+
+
+def _las_scaled(root: Path, scale: float) -> bytes:
+    """p01's points written by laspy, the header's three scale factors then set to ``scale``."""
+    data = bytearray(_las_count_lying_low(root))
+    struct.pack_into("<I", data, 107, 300)
+    struct.pack_into("<3d", data, 131, scale, scale, scale)
+    return bytes(data)
+
+
 def _ascii_ply(rows: list[str], n: int | None = None) -> bytes:
     head = (f"ply\nformat ascii 1.0\nelement vertex {len(rows) if n is None else n}\n"
             "property float x\nproperty float y\nproperty float z\nend_header\n")
@@ -187,6 +233,24 @@ def _detections_with_extra(root: Path, extra: str) -> None:
     (root / "detections.yaml").write_text(
         "format: sonar-camera-detections/1\n" + extra +
         "captures:\n  p01:\n    sonar: {status: rejected}\n")
+
+
+def _corrupt_background_named_badly(root: Path, _) -> None:
+    """A background folder holding a corrupt frame whose file name holds a newline, an OSC
+    title escape and a bidi override: the refusal must name it on one line, escaped."""
+    bg = root / "backgrounds" / "cam1"
+    bg.mkdir(parents=True)
+    (bg / "bg0.png").write_bytes((root / "images" / "cam1" / "p01.png").read_bytes())
+    (bg / "bg1\x1b]0;owned\x07\u202e\nerror: forged.png").write_bytes(b"not an image")
+    _edit_manifest(root, lambda d: d["cameras"]["cam1"].update(background="backgrounds/cam1/"))
+
+
+def _background_video(root: Path, data: bytes) -> None:
+    """cam1's background is a video file holding ``data``: OpenCV's FFmpeg backend printed
+    "[mov,mp4,...] moov atom not found" on stderr above our one line."""
+    (root / "backgrounds").mkdir()
+    (root / "backgrounds" / "bg.mp4").write_bytes(data)
+    _edit_manifest(root, lambda d: d["cameras"]["cam1"].update(background="backgrounds/bg.mp4"))
 
 
 # ---- the CLI cases --------------------------------------------------------------------
@@ -257,6 +321,13 @@ CASES: dict[str, Case] = {
     "calibration.json nested 100k deep": Case(lambda r, _: (_write_calibration(r), (r / "results" / "calibration.json")
                                                             .write_text("[" * 100000 + "]" * 100000)),
                                               "calibration.json", "export --format json"),
+    "calibration.json with a 1e308 transform (report)": Case(lambda r, _: _write_calibration(r, [[1e308] * 4] * 4),
+                                                            "calibration.json", "report", phrase="rigid"),
+    "calibration.json with a 1e308 transform (plan)": Case(lambda r, _: _write_calibration(r, [[1e308] * 4] * 4),
+                                                          "calibration.json", "plan", phrase="rigid"),
+    "detections.yaml with a centre at 1e308 m (report)": Case(lambda r, _: (
+        r / "detections.yaml").write_text("format: sonar-camera-detections/1\ncaptures:\n  p01:\n    sonar: "
+                                          "{center: [1.0e+308, 0, 1.6], status: accepted}\n"), "detections.yaml", "report"),
     "session.yaml of 100 MB": Case(lambda r, _: open(r / "session.yaml", "ab").truncate(100 * 2**20), "session.yaml"),
     # image headers
     "JPEG claiming 30000 x 30000": Case(lambda r, _: _set_image(r, "big.jpg", _jpeg_claiming(30000, 30000)), "big.jpg"),
@@ -294,11 +365,25 @@ CASES: dict[str, Case] = {
     "binary PLY with a huge face element": Case(lambda r, _: _set_cloud(r, "faces.ply", (r / "clouds" / "p01.ply")
                                                                         .read_bytes().replace(
         b"end_header", b"element face 4000000000\nproperty list uchar int vertex_indices\nend_header", 1)), "faces.ply"),
+    "binary PLY with a list property in the vertices, lying length": Case(lambda r, _: _set_cloud(
+        r, "listy.ply", _ply_vertex_list(r)), "listy.ply", phrase="list property"),
+    "binary PLY whose count lies low (10 of 300 rows)": Case(lambda r, _: _set_cloud(r, "low.ply", _ply_count_lying_low(r)),
+                                                            "low.ply", phrase="point count"),
+    "binary PCD whose count lies low (10 of 100 rows)": Case(lambda r, _: _set_cloud(
+        r, "low.pcd", _pcd("binary", 10, np.ones((100, 3), "<f4").tobytes())), "low.pcd", phrase="point count"),
+    "LAS whose count lies low (10 of 300 records)": Case(lambda r, _: _set_cloud(r, "low.las", _las_count_lying_low(r)),
+                                                        "low.las", phrase="point count"),
+    "LAS with scale factors of 1e308 (laspy's overflow warnings)": Case(
+        lambda r, _: _set_cloud(r, "scale.las", _las_scaled(r, 1e308)), "scale.las", phrase="scale"),
+    "LAS with scale factors of 0 (every point at the offset)": Case(
+        lambda r, _: _set_cloud(r, "zero.las", _las_scaled(r, 0.0)), "zero.las", phrase="scale"),
     "PCD with SIZE 0 fields": Case(lambda r, _: _set_cloud(r, "z.pcd", _pcd("binary", 10**8, b"").replace(
         b"SIZE 4 4 4", b"SIZE 0 0 0")), "z.pcd"),
     "LAS 1.4 with an extended VLR claiming 2**62 bytes": Case(lambda r, _: _set_cloud(r, "evlr.las", _las14_evlr_bomb()),
                                                              "evlr.las"),
     ".npy with a huge shape": Case(lambda r, _: _set_cloud(r, "huge.npy", _npy_claiming((10**12, 3))), "huge.npy"),
+    ".npy cloud of complex numbers": Case(lambda r, _: _set_cloud(r, "c.npy", _npy_bytes(np.ones((50, 3), complex))),
+                                          "c.npy", phrase="complex128"),
     "text cloud that is one endless line": Case(lambda r, _: _set_cloud(r, "line.xyz", b"1 " * 400_000), "line.xyz"),
     # symlinks and writes outside the session
     "symlinked image outside": Case(lambda r, o: (
@@ -324,17 +409,26 @@ CASES: dict[str, Case] = {
     "export reading a calibration through results/ symlink": Case(
         lambda r, o: (_write_calibration(r), _relink_results(r, o / "res")), "calibration.json", "export --format json",
         phrase="outside the session folder"),
+    # names that would forge lines or drive the terminal when a message shows them (session 25, sec)
+    "image path with a newline and an escape": Case(lambda r, _: _edit_manifest(r, lambda d: d["captures"][0][
+        "images"].update(cam1="images/cam1/a\x1b]0;owned\x07\nerror: forged.png")), "session.yaml",
+        phrase="control characters"),
+    "corrupt background frame named with a newline": Case(_corrupt_background_named_badly, "forged.png", "detect"),
+    "background video that is not a video (FFmpeg's own log line)": Case(
+        lambda r, _: _background_video(r, b"not a video\n" * 100), "bg.mp4", "detect"),
+    "background video of 0 bytes": Case(lambda r, _: _background_video(r, b""), "bg.mp4", "detect", phrase="empty"),
     "info with detections.yaml symlinked out": Case(lambda r, o: (
         (o / "det.yaml").write_text("format: sonar-camera-detections/1\ncaptures: {}\n"),
         os.symlink(o / "det.yaml", r / "detections.yaml")), "detections.yaml", phrase="outside the session folder"),
 }
 
 
-def _write_calibration(root: Path) -> None:
+def _write_calibration(root: Path, T=None) -> None:
     from calib_core.results import CALIBRATION_FORMAT, save_calibration
 
+    T = np.eye(4).tolist() if T is None else T
     save_calibration(root / "results" / "calibration.json",
-                     {"format": CALIBRATION_FORMAT, "cameras": {"cam1": {"T_cam_sonar": np.eye(4).tolist()}}})
+                     {"format": CALIBRATION_FORMAT, "cameras": {"cam1": {"T_cam_sonar": T}}})
 
 
 def _relink_results(root: Path, outside: Path) -> None:
@@ -389,6 +483,7 @@ def test_cli_case_is_refused_in_one_line(results, name):
     assert len(lines) == 1, detail
     assert case.file in lines[0] and case.phrase.lower() in lines[0].lower(), detail
     assert "Traceback" not in r["err"] + r["out"] and "MemoryError" not in r["err"], detail
+    assert "\x1b" not in r["err"] and "\u202e" not in r["err"], detail  # no terminal escape from a name
     assert 0 < r["peak_kb"] < PEAK_LIMIT_KB, f"peak memory {r['peak_kb'] / 1024:.0f} MB"
     assert 0 <= r["cpu"] < CPU_LIMIT_S, f"{r['cpu']:.1f} s of CPU"
     assert r["root_same"] and r["parent_same"], "a file changed or appeared in or beside the session"
@@ -514,7 +609,8 @@ def _zip_bytes(entries: dict[str, bytes], symlink: str | None = None) -> bytes:
     return buf.getvalue()
 
 
-@pytest.mark.parametrize("kind", ["bomb", "symlink", "dotdot", "absolute", "not a zip", "duplicate", "file as folder"])
+@pytest.mark.parametrize("kind", ["bomb", "symlink", "dotdot", "absolute", "not a zip", "duplicate", "file as folder",
+                                  "long name", "deep path", "control characters"])
 def test_hostile_zips_are_refused_and_leave_nothing(tmp_path, kind):
     from app.uploads import safe_unpack_zip
     from calib_core.errors import SessionError
@@ -526,7 +622,12 @@ def test_hostile_zips_are_refused_and_leave_nothing(tmp_path, kind):
             "absolute": lambda: _zip_bytes({"/tmp/evil.txt": b"x"}),
             "not a zip": lambda: b"PK\x03\x04" + os.urandom(2000),
             "duplicate": _dup_zip,
-            "file as folder": lambda: _zip_bytes({"session.yaml": b"a: 1", "a": b"x", "a/b": b"y"})}[kind]()
+            "file as folder": lambda: _zip_bytes({"session.yaml": b"a: 1", "a": b"x", "a/b": b"y"}),
+            # session 25 (sec): an OSError (name too long) escaped instead of a SessionError;
+            # a name with a newline and an escape was unpacked as it was
+            "long name": lambda: _zip_bytes({"session.yaml": b"a: 1", "x" * 300: b"1"}),
+            "deep path": lambda: _zip_bytes({"session.yaml": b"a: 1", "a/" * 3000 + "f": b"1"}),
+            "control characters": lambda: _zip_bytes({"session.yaml": b"a: 1", "bad\nname\x1b[31m.png": b"1"})}[kind]()
     zpath.write_bytes(data)
     dest = tmp_path / "uploads"
     with pytest.raises(SessionError) as ei:

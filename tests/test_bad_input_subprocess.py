@@ -6,14 +6,21 @@ from __future__ import annotations
 import os
 import subprocess
 import sys
+from pathlib import Path
 
 import pytest
 from conftest import VENV_SONARCAL, cli_command_exists, tree_hash
 
 
+CHECKOUT = Path(__file__).resolve().parents[1]
+
+
 def _sonarcal(args):
+    """The entry point on this checkout's code (PYTHONPATH first: in a git worktree whose .venv is
+    another checkout's, the installed script would otherwise import that checkout's code)."""
     cmd = [str(VENV_SONARCAL)] if VENV_SONARCAL.exists() else [sys.executable, "-m", "sonarcal_cli.main"]
-    return subprocess.run(cmd + args, capture_output=True, text=True, timeout=180, env=dict(os.environ, COLUMNS="120"))
+    env = dict(os.environ, COLUMNS="120", PYTHONPATH=os.pathsep.join([str(CHECKOUT), os.environ.get("PYTHONPATH", "")]))
+    return subprocess.run(cmd + args, capture_output=True, text=True, timeout=180, env=env)
 
 
 @pytest.mark.parametrize("command", ["detect"])
@@ -44,3 +51,20 @@ def test_symlink_out_of_session_refused_in_real_process(make_session, tmp_path):
     assert "session.yaml: cameras.cam1.intrinsics: path 'intrinsics/cam1.yaml' leaves the session folder" in r.stderr
     assert "Traceback" not in r.stderr
     assert tree_hash(root) == before
+
+
+def test_points_absurdly_far_are_dropped_not_an_internal_error(make_session, tmp_path):
+    """A cloud with one point at 1e308 m and one at float32's maximum (a driver's "no return"):
+    detect used to overflow the sonar detector's voxel grid (numpy RuntimeWarnings on stderr,
+    then "internal error: ValueError ..." and exit 1). Now they are dropped as no-return points."""
+    import numpy as np
+
+    from calib_core.io.clouds import load_cloud
+
+    root = make_session(tmp_path, n_captures=3, cameras=("cam1",))
+    pts = load_cloud(root / "clouds" / "p01.ply").points_m
+    np.save(root / "clouds" / "p01.npy", np.vstack([pts, [[1e308, 0.0, 1.0]], [[3.4e38, 3.4e38, 3.4e38]]]))
+    (root / "session.yaml").write_text((root / "session.yaml").read_text().replace("clouds/p01.ply", "clouds/p01.npy"))
+    r = _sonarcal(["detect", str(root)])
+    assert r.returncode == 0, r.stderr
+    assert "internal error" not in r.stderr and "Warning" not in r.stderr and "Traceback" not in r.stderr, r.stderr

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import cv2
 import numpy as np
+import pytest
 import yaml
 
 from calib_core.io.clouds import load_cloud
@@ -83,4 +84,20 @@ def test_video_bad_csv(tmp_path, capsys):
     rc = main(["import", str(video), "--scans", str(csv), "--intrinsics", str(intr), "--out", str(tmp_path / "s"),
                "--diameter", "0.2"])
     assert rc == 2 and "line 2" in capsys.readouterr().err
+    assert not (tmp_path / "s").exists()
+
+
+@pytest.mark.parametrize("body", [b"p01,0,1," + b"c" * 200_000 + b"\n",  # a field over csv's 128 kB limit
+                                  b"p01,0,1,a.ply\n\xff\xfe\n"])  # not UTF-8
+def test_video_hostile_csv_is_one_line(tmp_path, capsys, body):
+    """A field over the csv module's limit was "internal error: Error: field larger than field
+    limit" (exit 1); invalid UTF-8 a UnicodeDecodeError. Session 25 (sec)."""
+    video = tmp_path / "v.avi"
+    video.write_bytes(b"not a video")
+    csv = tmp_path / "scans.csv"
+    csv.write_bytes(b"id,start_s,end_s,cloud\n" + body)
+    rc = main(["import", str(video), "--scans", str(csv), "--intrinsics", str(tmp_path / "cam1.yaml"),
+               "--out", str(tmp_path / "s"), "--diameter", "0.2"])
+    err = [ln for ln in capsys.readouterr().err.splitlines() if ln.strip()]
+    assert rc == 2 and len(err) == 1 and "scans.csv" in err[0] and "internal error" not in err[0], err
     assert not (tmp_path / "s").exists()

@@ -177,3 +177,24 @@ def test_points_at_the_sensor_origin_are_no_return(tmp_path, cloud):
     save_cloud(tmp_path / "zz.npy", Cloud(np.zeros((30, 3))))
     with pytest.raises(SessionError, match="no return"):
         load_cloud(tmp_path / "zz.npy")
+
+
+def test_absurdly_far_points_are_no_return(tmp_path, cloud):
+    """One point at 1e308 m (a corrupt value) or float32's maximum (a driver's "no return"
+    marker) overflowed the sonar detector's voxel grid: an internal error instead of a cloud."""
+    pts = np.vstack([cloud.points_m, [[1e308, 0.0, 1.0]], [[3.4e38, 3.4e38, 3.4e38]]])
+    np.save(tmp_path / "far.npy", pts)
+    c = load_cloud(tmp_path / "far.npy")
+    assert len(c) == len(cloud.points_m) and c.n_without_return == 2 and np.abs(c.points_m).max() < 1e3
+    with pytest.raises(SessionError, match="2 of 502 points are NaN or infinite"):
+        load_cloud(tmp_path / "far.npy", allow_nonfinite=False)
+    np.save(tmp_path / "all_far.npy", np.full((10, 3), 1e308))
+    with pytest.raises(SessionError, match="no return"):
+        load_cloud(tmp_path / "all_far.npy")
+
+
+def test_complex_npy_is_refused(tmp_path, cloud):
+    """Complex numbers used to be cast to their real part with a ComplexWarning on stderr."""
+    np.save(tmp_path / "c.npy", cloud.points_m.astype(np.complex128))
+    with pytest.raises(SessionError, match=r"number array, got complex128"):
+        load_cloud(tmp_path / "c.npy")

@@ -118,6 +118,12 @@ def test_opencv_filestorage_alternative_names(tmp_path):
     (lambda d: d.pop("camera_matrix"), "missing 'camera_matrix'"),
     (lambda d: d.update(camera_matrix=None), "missing 'camera_matrix'"),
     (lambda d: d.update(camera_matrix={"rows": 3}), "has 1 values"),
+    # finite but absurd (session 25, sec): detect ran on them, overflow warnings, "no round outline"
+    (lambda d: d["camera_matrix"].update(data=[1e308, 0, 961.2, 0, 1e308, 538.9, 0, 0, 1]), "not plausible"),
+    (lambda d: d["camera_matrix"].update(data=[1e-300, 0, 961.2, 0, 1e-300, 538.9, 0, 0, 1]), "not plausible"),
+    (lambda d: d["camera_matrix"].update(data=[1402.5, 0, 1e308, 0, 1400.1, 538.9, 0, 0, 1]), "principal point"),
+    (lambda d: d["camera_matrix"].update(data=[1402.5, 1e308, 961.2, 0, 1400.1, 538.9, 0, 0, 1]), "skew"),
+    (lambda d: d["distortion_coefficients"].update(data=[1e308, 0, 0, 0, 0]), "distortion coefficients up to"),
 ])
 def test_bad_ros_files(tmp_path, edit, match):
     d = yaml.safe_load(ROS_TEXT)

@@ -23,12 +23,31 @@ from calib_core.io.clouds import load_cloud
 from calib_core.io.intrinsics import load_intrinsics
 
 MAX_CSV_ROWS = 10_000
+MAX_CSV_BYTES = 16 * 2**20  # 10 000 rows of id, two times and a cloud path are well under 2 MB
 
 
 def read_scan_csv(path: Path) -> list[tuple[str, float, float, Path]]:
     """Rows (id, start_s, end_s, cloud path) of a scan-times CSV, checked."""
     if not path.is_file():
         raise SessionError(path, "scan-times CSV not found")
+    if path.stat().st_size > MAX_CSV_BYTES:
+        raise SessionError(path, f"scan-times CSV is {path.stat().st_size / 2**20:.0f} MiB: far more than "
+                                 f"{MAX_CSV_ROWS} rows of scan times")
+    try:
+        rows = _csv_rows(path)
+    except csv.Error as e:  # a field over csv's 128 kB limit, a NUL byte: was an internal error
+        raise SessionError(path, f"not a scan-times CSV ({e})") from None
+    except UnicodeDecodeError:
+        raise SessionError(path, "not a text file (invalid UTF-8)") from None
+    if not rows:
+        raise SessionError(path, "no scan rows")
+    ids = [r[0] for r in rows]
+    if len(set(ids)) != len(ids):
+        raise SessionError(path, "capture ids are not unique")
+    return rows
+
+
+def _csv_rows(path: Path) -> list[tuple[str, float, float, Path]]:
     rows = []
     with open(path, newline="", encoding="utf-8-sig") as f:
         reader = csv.DictReader(f)
@@ -40,11 +59,6 @@ def read_scan_csv(path: Path) -> list[tuple[str, float, float, Path]]:
                 raise SessionError(path, f"more than {MAX_CSV_ROWS} rows")
             row = {k.strip(): (v or "").strip() for k, v in row.items() if k}
             rows.append(_row(path, n, row))
-    if not rows:
-        raise SessionError(path, "no scan rows")
-    ids = [r[0] for r in rows]
-    if len(set(ids)) != len(ids):
-        raise SessionError(path, "capture ids are not unique")
     return rows
 
 

@@ -4,7 +4,8 @@ Importing open3d takes about a second; every detection worker used to pay it for
 thousand points. Headers were already checked against the file size
 (:mod:`calib_core.io.cloud_headers`), so exactly the declared rows are there. Files this
 reader does not cover (a variable-length element before the vertices of a PLY, a
-``binary_compressed`` PCD) return None and are left to open3d.
+``binary_compressed`` PCD) return None and are left to open3d; a list property inside the vertex
+element is refused (open3d reads a lying list length on into garbage rows and exits 0).
 """
 
 from __future__ import annotations
@@ -29,8 +30,11 @@ def read_binary_ply(path: Path):
     elements = _ply_layout(lines)
     skip = 0
     for name, count, props in elements:
+        if props is None and name == "vertex":  # open3d reads a lying list length on: garbage points, exit 0
+            raise SessionError(path, "PLY 'vertex' element holds a list property: rows of varying length are not "
+                                     "supported (write x, y, z and intensity as plain properties)")
         if props is None:
-            return None  # a list property before (or in) the vertices: rows of varying size
+            return None  # a list property before the vertices (faces first): rows of varying size
         if name == "vertex":
             return _ply_vertices(path, offset + skip, count, props, order)
         skip += count * sum(np.dtype(t).itemsize for _, t in props)

@@ -111,6 +111,20 @@ def _check_ply_binary(path: Path, elements: list, header_len: int, size: int) ->
             break
     if size < need:
         raise SessionError(path, f"file is truncated: {size} bytes, its header needs at least {need}")
+    if all(props is not None for _, _, props in elements):  # every row of a fixed size: the total is known
+        rows = [(name, count * sum(_PLY_SIZES[p] for p in props), sum(_PLY_SIZES[p] for p in props))
+                for name, count, props in elements]
+        total = header_len + sum(nbytes for _, nbytes, _ in rows)
+        vertex_row = next(row for name, _, row in rows if name == "vertex")
+        _check_no_extra_rows(path, size - total, vertex_row)
+
+
+def _check_no_extra_rows(path: Path, extra: int, row_bytes: int) -> None:
+    """A whole point row more than the header declares (padding shorter than a row is left
+    alone): a count that lies low would silently drop the points after it."""
+    if row_bytes and extra >= row_bytes:
+        raise SessionError(path, f"file holds {extra // row_bytes} more point rows than its header's point count: "
+                                 "the count is wrong (or the file was appended to)")
 
 
 def _check_ply_ascii(path: Path, elements: list, vertex: list, header_len: int) -> None:
@@ -143,6 +157,7 @@ def _check_pcd(path: Path, head: bytes) -> int:
         need = header_len + n * row_bytes
         if size < need:
             raise SessionError(path, f"file is truncated: {size} bytes, its header needs at least {need}")
+        _check_no_extra_rows(path, size - need, row_bytes)
     elif kind == "binary_compressed":
         _check_pcd_compressed(path, header_len, n, row_bytes, size)
     elif kind == "ascii":

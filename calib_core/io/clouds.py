@@ -20,6 +20,9 @@ from calib_core.io.las_header import MAX_CLOUD_POINTS, check_las_header, check_n
 from calib_core.io.off import read_off
 
 MAX_CLOUD_BYTES = 2 * 2**30  # a sonar scan is tens of MB; anything this big is a wrong file
+# farther than any sensor measures, in metres or millimetres: a coordinate beyond this is a driver's
+# "no return" marker (FLT_MAX) or a corrupt value, and would overflow the detectors' voxel grids
+MAX_COORD = 1e7
 CLOUD_SUFFIXES = (".ply", ".pcd", ".xyz", ".csv", ".txt", ".npy", ".las", ".laz", ".off")
 
 
@@ -77,9 +80,11 @@ def load_cloud(path: str | Path, allow_nonfinite: bool = True) -> Cloud:
         raise SessionError(path, f"expected N x 3 points, got shape {pts.shape}")
     if len(pts) == 0:
         raise SessionError(path, "point cloud holds no points")
-    finite = np.isfinite(pts).all(axis=1)
+    with np.errstate(invalid="ignore"):
+        finite = (np.abs(pts) <= MAX_COORD).all(axis=1)  # False for NaN, infinite and absurdly far points
     if not allow_nonfinite and not finite.all():
-        raise SessionError(path, f"{int((~finite).sum())} of {len(pts)} points are NaN or infinite")
+        raise SessionError(path, f"{int((~finite).sum())} of {len(pts)} points are NaN or infinite (or farther "
+                                 f"than {MAX_COORD:.0e} from the origin)")
     keep = finite & pts.any(axis=1)  # exactly (0, 0, 0), the sensor's own origin, is how many drivers write "no return"
     if inten is not None:
         inten = np.asarray(inten, dtype=np.float64).reshape(-1)
@@ -87,7 +92,8 @@ def load_cloud(path: str | Path, allow_nonfinite: bool = True) -> Cloud:
             inten = None
     if not keep.all():
         if not keep.any():
-            raise SessionError(path, f"point cloud holds no return: all {len(pts)} points are NaN, infinite or (0, 0, 0)")
+            raise SessionError(path, f"point cloud holds no return: all {len(pts)} points are NaN, infinite, "
+                                     f"farther than {MAX_COORD:.0e} or (0, 0, 0)")
         pts = pts[keep]
         inten = None if inten is None else inten[keep]
     return Cloud(pts, inten, int(len(keep) - len(pts)))
@@ -306,7 +312,8 @@ def _read_text_rows(path: Path):
 def _read_npy(path: Path):
     check_npy_header(path)
     arr = np.load(path, allow_pickle=False)
-    if arr.ndim != 2 or arr.shape[1] not in (3, 4) or not np.issubdtype(arr.dtype, np.number):
+    real = np.issubdtype(arr.dtype, np.integer) or np.issubdtype(arr.dtype, np.floating)  # not complex, not text
+    if arr.ndim != 2 or arr.shape[1] not in (3, 4) or not real:
         raise SessionError(path, f"expected an (N,3) or (N,4) number array, got {arr.dtype} {arr.shape}")
     return arr[:, :3], (arr[:, 3] if arr.shape[1] == 4 else None)
 

@@ -230,6 +230,8 @@ def load_video_frames(path: str | Path, start_s: float = 0.0, end_s: float | Non
     path = Path(path)
     if not path.is_file():
         raise SessionError(path, "video file not found")
+    if path.stat().st_size == 0:
+        raise SessionError(path, "video file is empty (0 bytes)")
     cap = cv2.VideoCapture(str(path))
     try:
         if not cap.isOpened():

@@ -48,7 +48,10 @@ def load_intrinsics(path: str | Path, camera: str | None = None, entry: str | No
     if not isinstance(data, dict):
         raise SessionError(path, "expected a ROS camera_info mapping (image_width, camera_matrix, ...)")
     if is_camchain(data):
-        return camera_from_camchain(path, data, camera, entry)
+        cam = camera_from_camchain(path, data, camera, entry)
+        _check_K_values(path, cam.K, cam.width_px, cam.height_px)
+        check_distortion(path, np.asarray(cam.dist, float))
+        return cam
     if entry is not None:
         raise SessionError(path, f"intrinsics_entry {short_repr(entry)} is given, but this is not a Kalibr camchain "
                                  "(cam0: {intrinsics: ...}); leave intrinsics_entry out for a ROS camera_info file")
@@ -79,6 +82,32 @@ def _check_K(path: Path, K: np.ndarray, w: int, h: int) -> None:
         raise SessionError(path, "camera_matrix must be [fx, s, cx, 0, fy, cy, 0, 0, 1]")
     if not (0 < w <= 100_000 and 0 < h <= 100_000):
         raise SessionError(path, f"image size {w} x {h} is not plausible (1 to 100000 pixels a side)")
+    _check_K_values(path, K, w, h)
+
+
+# finite but absurd values (fx 1e308 or 1e-300, cx 1e308, distortion 1e308) ran the detectors on
+# nonsense ("no round outline" everywhere) with numpy overflow warnings on stderr
+MAX_FOCAL_PER_SIDE = 1000.0  # fx up to 1000 image widths: a field of view of 0.06 degrees
+MAX_ABS_DISTORTION = 1e4
+
+
+def _check_K_values(path: Path, K: np.ndarray, w: int, h: int) -> None:
+    fx, fy, s, cx, cy = K[0, 0], K[1, 1], K[0, 1], K[0, 2], K[1, 2]
+    side = max(w, h)
+    if not (1.0 <= fx <= MAX_FOCAL_PER_SIDE * side and 1.0 <= fy <= MAX_FOCAL_PER_SIDE * side):
+        raise SessionError(path, f"focal lengths fx={fx:.6g}, fy={fy:.6g} px are not plausible for a {w} x {h} image "
+                                 f"(1 to {MAX_FOCAL_PER_SIDE * side:.0f} px)")
+    if not (-w <= cx <= 2 * w and -h <= cy <= 2 * h):
+        raise SessionError(path, f"principal point ({cx:.6g}, {cy:.6g}) px is far outside the {w} x {h} image")
+    if abs(s) > max(fx, fy):
+        raise SessionError(path, f"skew {s:.6g} is not plausible (cameras have about 0)")
+
+
+def check_distortion(path: Path, dist: np.ndarray) -> None:
+    """Distortion coefficients of a plausible size (see MAX_ABS_DISTORTION)."""
+    if np.abs(dist).max(initial=0.0) > MAX_ABS_DISTORTION:
+        raise SessionError(path, f"distortion coefficients up to {np.abs(dist).max():.6g} are not plausible "
+                                 f"(at most {MAX_ABS_DISTORTION:.0e})")
 
 
 def _camera_name(path: Path, value) -> str:
@@ -109,6 +138,7 @@ def _from_ros(path: Path, data: dict) -> CameraModel:
         raise SessionError(path, f"distortion_model {short_repr(model)} is not supported "
                                  "(use plumb_bob, rational_polynomial or equidistant)")
     dist = _matrix(path, data, "distortion_coefficients", (4, 5, 8)) if "distortion_coefficients" in data else np.zeros(5)
+    check_distortion(path, dist)
     if model in ("equidistant", "fisheye"):
         _check_K(path, K, w, h)
         if dist.size != 4 and np.any(dist[4:] != 0):
@@ -205,6 +235,7 @@ def _read_opencv_storage(path: Path) -> CameraModel:
     if not np.isfinite(K).all() or not np.isfinite(dist).all():
         raise SessionError(path, "camera matrix or distortion holds NaN or infinite values")
     _check_K(path, K, w, h)
+    check_distortion(path, dist)
     if fisheye and dist.size != 4:
         raise SessionError(path, f"fisheye_model: 1 (OpenCV's fisheye model) has 4 distortion values, got {dist.size}")
     return CameraModel(w, h, K, dist, name=path.stem, fisheye=fisheye)

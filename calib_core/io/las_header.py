@@ -43,18 +43,53 @@ def check_las_header(path: Path) -> int:
                                  f"do not fit a {size}-byte file")
     if n > MAX_CLOUD_POINTS:
         raise SessionError(path, f"LAS header claims {n} points: more than the {MAX_CLOUD_POINTS} this tool loads")
+    _check_scale_offset(path, head)
     data_bytes = size - offset
     if not compressed and n * rec_len > data_bytes:
         raise SessionError(path, f"file is truncated or its header is corrupt: {n} points of {rec_len} bytes "
                                  f"need {n * rec_len} bytes, the file holds {data_bytes}")
     if compressed and n * rec_len > data_bytes * MAX_LAZ_RATIO:
         raise SessionError(path, f"LAZ header claims {n} points, far more than {data_bytes} compressed bytes can hold")
+    evlr_start = n_evlr = 0
     if minor >= 4 and len(head) >= 247:
         evlr_start, n_evlr = struct.unpack_from("<QI", head, 235)
         if n_evlr and (evlr_start > size or n_evlr * 60 > size - evlr_start):
             raise SessionError(path, f"LAS header is corrupt: {n_evlr} extended VLRs do not fit the file")
         _check_evlrs(path, evlr_start, n_evlr, size)
+    if not compressed:
+        _check_no_extra_records(path, head, minor, offset, n, rec_len, evlr_start if n_evlr else size, size)
     return int(n)
+
+
+def _check_no_extra_records(path: Path, head: bytes, minor: int, offset: int, n: int, rec_len: int,
+                            evlr_start: int, size: int) -> None:
+    """A whole point record more than the header declares, before whatever follows the points
+    (LAS 1.3 waveform data, LAS 1.4 extended VLRs): a count lying low silently dropped the rest."""
+    end = min(size, evlr_start)
+    if minor >= 3 and len(head) >= 235:
+        waveform_start = struct.unpack_from("<Q", head, 227)[0]
+        if offset < waveform_start < end:
+            end = waveform_start
+    extra = end - offset - n * rec_len
+    if extra >= rec_len:
+        raise SessionError(path, f"file holds {extra // rec_len} more point records than its header's point count "
+                                 f"({n}): the count is wrong (or the file was appended to)")
+
+
+MAX_LAS_SCALE = 1e3  # metres per integer step; real files use 1e-4 to 1
+MAX_LAS_OFFSET = 1e9  # metres; UTM or ECEF offsets are below 1e7
+
+
+def _check_scale_offset(path: Path, head: bytes) -> None:
+    """Scale factors and offsets that make coordinates at all (scale 0: every point at the offset;
+    1e308: overflow warnings from laspy on stderr and infinite points)."""
+    scale, offset = np.array(struct.unpack_from("<3d", head, 131)), np.array(struct.unpack_from("<3d", head, 155))
+    with np.errstate(invalid="ignore"):
+        ok = (np.abs(scale) > 0).all() and (np.abs(scale) <= MAX_LAS_SCALE).all() \
+            and (np.abs(offset) <= MAX_LAS_OFFSET).all()
+    if not ok:
+        raise SessionError(path, f"LAS header is corrupt: scale factors {scale.tolist()} and offsets {offset.tolist()} "
+                                 f"(scale 0 < |s| <= {MAX_LAS_SCALE:g}, offsets at most {MAX_LAS_OFFSET:.0e} m)")
 
 
 def _check_evlrs(path: Path, start: int, count: int, size: int) -> None:

@@ -46,7 +46,7 @@ def run(args) -> int:
         cal = calibrate_session(session, detections, opts, progress=cb)
     save_calibration(out, cal, root=session.root, explicit=bool(args.out))
     print_report(cal, quiet=args.quiet)
-    console.print(f"wrote {out}")
+    console.print(f"wrote {out}", markup=False)
     return 0
 
 
@@ -54,7 +54,7 @@ def print_report(cal: dict, quiet: bool = False) -> None:
     from calib_core.detect.reasons import count_reasons
     from calib_core.solve.summary import consistency_lines, pose_rows, residual_rows, scale_line, table_i_rows
 
-    console.print(f"[bold]Calibration of {cal['session']}[/bold]")
+    console.print(f"Calibration of {cal['session']}", style="bold", markup=False)  # the name is the user's text
     cols, rows = pose_rows(cal)
     console.print(table("T_cam_sonar per camera (sonar origin in the camera frame; sigmas about camera axes)", cols, rows))
     console.print(scale_line(cal), markup=False)

@@ -65,7 +65,7 @@ def run(args) -> int:
                               f"{session.sphere_diameter_m * 1000:.0f} mm: check sphere.diameter", markup=False)
     if data.beam_width_deg:
         console.print(f"sonar effective beam width {data.beam_width_deg:.3f} deg (session.yaml: {session.beam_width_deg:g} deg)")
-    console.print(f"wrote {session.root / 'detections.yaml'}; {missing} detection(s) not found")
+    console.print(f"wrote {session.root / 'detections.yaml'}; {missing} detection(s) not found", markup=False)
     from calib_core.diagnose import diagnose_session
 
     notes: list[str] = []

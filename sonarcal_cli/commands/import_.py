@@ -74,13 +74,13 @@ def run(args) -> int:
             from calib_core.ingest.importer import import_bag
 
             res = import_bag(source, args.out, opts, progress=cb)
-    console.print(f"wrote session {res.out}: {len(res.captures)} captures ({', '.join(res.captures)})")
+    console.print(f"wrote session {res.out}: {len(res.captures)} captures ({', '.join(res.captures)})", markup=False)
     if res.skipped:
-        console.print(f"skipped scans: {', '.join(res.skipped)} (see source.captures in session.yaml)")
+        console.print(f"skipped scans: {', '.join(res.skipped)} (see source.captures in session.yaml)", markup=False)
     if res.moved:
         what = "left out" if args.drop_moved else "kept; check them or use --drop-moved"
         console.print(f"TARGET MOVED during scan: {', '.join(res.moved)} (more than {opts.tolerance_px} px or "
-                      f"{opts.tolerance_m * 1000:.0f} mm; {what})")
+                      f"{opts.tolerance_m * 1000:.0f} mm; {what})", markup=False)
     return 0
 
 

@@ -47,5 +47,5 @@ def run_intrinsics(args) -> int:
     rows = [[n, f"{e:.3f}"] for n, e in res.per_image_rms_px.items()]
     rows += [[n, f"skipped: {r}"] for n, r in res.skipped.items()]
     console.print(table(f"Per-image reprojection RMS (px), {len(res.per_image_rms_px)} used", ["image", "RMS px"], rows))
-    console.print(f"reprojection RMS {res.rms_px:.3f} px; wrote {out}")
+    console.print(f"reprojection RMS {res.rms_px:.3f} px; wrote {out}", markup=False)
     return 0

@@ -35,6 +35,6 @@ def run(args) -> int:
     with progress_bar("report") as cb:
         write_report(session, out, calibration, detections, progress=cb, options=opts, calibration_note=note)
     if note:
-        console.print(f"[yellow]{note}[/yellow]")
-    console.print(f"wrote {out}")
+        console.print(note, style="yellow", markup=False)  # holds a path: '[' in a folder name is not markup
+    console.print(f"wrote {out}", markup=False)
     return 0

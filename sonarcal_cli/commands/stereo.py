@@ -6,6 +6,7 @@ import math
 from pathlib import Path
 
 import numpy as np
+from rich.markup import escape
 
 from calib_core.errors import SessionError
 from sonarcal_cli.checkerboard_common import check_square, load_images
@@ -48,7 +49,7 @@ def run_stereo(args) -> int:
                     r = calibrate_intrinsics(imgs, pattern, args.square, name=which, progress=cb)
                 except SessionError as e:
                     raise SessionError(e.path or Path(folder), e.problem) from None
-            console.print(f"{which}: intrinsics from {folder} (RMS {r.rms_px:.3f} px; give --intrinsics{idx} to use a file)")
+            console.print(f"{which}: intrinsics from {folder} (RMS {r.rms_px:.3f} px; give --intrinsics{idx} to use a file)", markup=False)
             cams.append(r.cam)
     with progress_bar("stereo") as cb:
         try:
@@ -63,10 +64,10 @@ def run_stereo(args) -> int:
            "note": f"copy '{key}' into session.yaml under 'stereo:' (and the covariance under 'stereo_covariance:')"}
     atomic_write_yaml(args.out, doc)
     sig = np.sqrt(np.diag(res.cov))
-    console.print(f"[bold]{key}[/bold]: baseline {1000 * np.linalg.norm(T[:3, 3]):.1f} mm, rotation "
+    console.print(f"[bold]{escape(key)}[/bold]: baseline {1000 * np.linalg.norm(T[:3, 3]):.1f} mm, rotation "
                   f"{math.degrees(np.linalg.norm(log_so3(T[:3, :3]))):.3f} deg "
                   f"(approx. 1-sigma {math.degrees(sig[:3].max()):.3f} deg, {1000 * sig[3:].max():.2f} mm)")
     rows = [[n, f"{e:.3f}"] for n, e in res.per_pair_rms_px.items()] + [[n, f"skipped: {r}"] for n, r in res.skipped.items()]
     console.print(table("Per-pair reprojection RMS (px)", ["pair", "RMS px"], rows))
-    console.print(f"stereo reprojection RMS {res.rms_px:.3f} px; wrote {args.out}")
+    console.print(f"stereo reprojection RMS {res.rms_px:.3f} px; wrote {args.out}", markup=False)
     return 0

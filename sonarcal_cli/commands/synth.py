@@ -67,7 +67,7 @@ def run(args) -> int:
     overrides = {} if args.scale is None else {"scale": args.scale}
     with progress_bar(f"synth {args.preset}") as cb:
         generate_session(out, args.preset, args.seed, progress=cb, **overrides)
-    console.print(f"wrote session {out} (preset {args.preset}, seed {args.seed}) with ground_truth.yaml")
+    console.print(f"wrote session {out} (preset {args.preset}, seed {args.seed}) with ground_truth.yaml", markup=False)
     if bag is not None:
         _write_bag(out, bag, args)
     return 0
@@ -84,4 +84,4 @@ def _write_bag(out: Path, path: Path, args) -> None:
     with progress_bar(f"bag {args.bag}") as cb:
         write_session_bag(out, path, args.bag, seed=args.seed, progress=cb)
     console.print(f"wrote {args.bag} bag {path} (background frames in the first {BACKGROUND_S:g} s: "
-                  f"import with --background 0:{BACKGROUND_S:g})")
+                  f"import with --background 0:{BACKGROUND_S:g})", markup=False)
