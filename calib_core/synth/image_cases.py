@@ -20,7 +20,11 @@ Each case is one rendered camera image of a scene kind (no sonar, no session fil
 - "mesh", "tank", "dim": held-out kinds of the third round: see-through balls (open lattice,
   cage, knotted net, wiffle holes: :mod:`calib_core.synth.photo.mesh_case`), a pool seen from
   under water with the ball mirrored by the surface and a glass wall
-  (:mod:`calib_core.synth.photo.tank`), low light at high gain (:mod:`calib_core.synth.photo.dim`).
+  (:mod:`calib_core.synth.photo.tank`), low light at high gain (:mod:`calib_core.synth.photo.dim`);
+- "rov": held-out kind of the fourth round: a field or ROV video camera (wide-angle lens with
+  strong barrel distortion, its own frame size: analog PAL / NTSC video interlaced, chroma
+  subsampled and compressed, or a digital frame; an on-screen display, the vehicle's parts and
+  the dome port's rim in view): see :mod:`calib_core.synth.photo.rov`.
 
 ``render_case(kind, seed, scale)`` returns the image, the camera, the sphere radius, the true
 projection of the sphere centre (raw px), the visible fraction of the outline and, where the
@@ -41,13 +45,14 @@ from calib_core.synth.range import scenes as range_scenes
 from calib_core.synth.photo import heldout as heldout_cases
 from calib_core.synth.photo.dim import dim as dim_case
 from calib_core.synth.photo.mesh_case import mesh as mesh_case
+from calib_core.synth.photo.rov import rov as rov_case
 from calib_core.synth.photo.tank import tank as tank_case
 from calib_core.synth.camera_render import RenderOptions, Water, finish_image, render_radiance
 from calib_core.synth.rig import sample_rig, sample_target_center, silhouette_uv
 from calib_core.synth.scene import Scene
 
 KINDS = ("clutter", "big", "turbid", "chair", "glossy", "panels", "motion", "sports", "outdoor", "underwater",
-         "mesh", "tank", "dim")
+         "mesh", "tank", "dim", "rov")
 PHOTO_KINDS = {"glossy": photo_cases.glossy, "panels": photo_cases.panels, "motion": photo_cases.motion}
 HELDOUT_KINDS = {**heldout_cases.HELDOUT_KINDS, "mesh": mesh_case, "dim": dim_case}
 
@@ -82,6 +87,9 @@ def render_case(kind: str, seed: int, scale: float = 0.5, with_ball: bool = True
     if kind == "tank":  # its own camera pose (looking up at the water surface)
         L, c, radius, photo, opts, label, T_wc = tank_case(rng, rig, cam, T_wc, scale, with_ball, opts)
         return _finish(L, None, cam, T_wc, c, radius, opts, rng, f"{label}/s{seed}", photo)
+    if kind == "rov":  # its own camera, pose and frame finishing
+        img, cam, T_wc, c, radius, label = rov_case(rng, rig, T_wc, scale, with_ball, opts)
+        return _with_truth(img, None, cam, T_wc, c, radius, f"{label}/s{seed}")
     if kind in HELDOUT_KINDS:
         L, c, radius, photo, opts, label = HELDOUT_KINDS[kind](rng, rig, cam, T_wc, scale, with_ball, opts)
         return _finish(L, None, cam, T_wc, c, radius, opts, rng, f"{label}/s{seed}", photo)
@@ -156,9 +164,14 @@ def _turbid(rng, rig, cam, T_wc, opts, seed, with_ball=True) -> ImageCase:
 
 
 def _finish(L, L_bg, cam, T_wc, c, radius, opts, rng, label, photo=None) -> ImageCase:
+    img = finish_image(L, opts, rng, photo)
+    bg = None if L_bg is None else finish_image(L_bg, opts, rng).astype(np.float32)
+    return _with_truth(img, bg, cam, T_wc, c, radius, label)
+
+
+def _with_truth(img, bg, cam, T_wc, c, radius, label) -> ImageCase:
+    """The case of a finished image: the centre's projection through the lens, the outline's size."""
     C = transform_points(invert_T(T_wc), c[None])[0]
     sil = silhouette_uv(cam, C, radius)
     r_px = 0.5 * float(np.max(sil.max(axis=0) - sil.min(axis=0)))
-    img = finish_image(L, opts, rng, photo)
-    bg = None if L_bg is None else finish_image(L_bg, opts, rng).astype(np.float32)
     return ImageCase(img, cam, radius, cam.project(C[None])[0], r_px, bg, label, float(np.linalg.norm(C)))

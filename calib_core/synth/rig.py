@@ -53,12 +53,12 @@ def sample_intrinsics(rng: np.random.Generator, width_px: int, height_px: int, n
         p1, p2 = rng.normal(0, 0.0008, 2)
         K = np.array([[f, 0, cx], [0, fy, cy], [0, 0, 1.0]])
         cam = CameraModel(width_px, height_px, K, np.array([k[0], k[1], p1, p2, k[2]]), name=name)
-        if _lens_ok(cam):
+        if lens_ok(cam):
             return cam
     raise RuntimeError("could not sample invertible intrinsics")  # practically unreachable
 
 
-def _lens_ok(cam: CameraModel) -> bool:
+def lens_ok(cam: CameraModel) -> bool:
     """Distortion invertible over the image (with 15 % radius to spare) and round-trip exact."""
     W, H = cam.width_px, cam.height_px
     border = np.array([[-0.5, -0.5], [W - 0.5, -0.5], [-0.5, H - 0.5], [W - 0.5, H - 0.5],

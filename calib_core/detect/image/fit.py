@@ -28,6 +28,7 @@ from calib_core.detect.image.blur import (BLUR_MAX_RADIUS_FRACTION, CLEAN_RMS_FR
                                           outline_rms_limit_px)
 from calib_core.detect.image import smear
 from calib_core.detect.image.limb import lopsided_floor_px2
+from calib_core.detect.image.overlay import is_drawn_line
 from calib_core.detect.image.region import Candidate
 
 SMOOTH_SIGMA_PX = 1.0
@@ -224,9 +225,27 @@ def _grown(cam, sig: _Signal, fit1: ConeFit, R: float, a_range_rad, rng, sphere_
         return CandidateFit(False, "no round outline")
     res, outside_bad = _fitted(cam, sig, p2, R, sphere_radius_m)
     _judge(cam, res, R, outside_bad, sig.diff is not None)
+    if res.ok and sig.diff is None and _drawn_over(sig, res):
+        res.ok, res.credible, res.reason = False, False, DRAWN_LINE
     if res.ok and fit1.reading == "several" and not _several_held(sig, res, R, outside_bad):
         res.ok, res.credible, res.reason = False, False, "no round outline"
     return res
+
+
+DRAWN_LINE = "a round line drawn over the image (an overlay), not an outline"
+
+
+def _drawn_over(sig: _Signal, res: CandidateFit) -> bool:
+    """The accepted outline is a thin line drawn over one surface (:mod:`.overlay`)."""
+    sil = res.silhouette_px
+    inside = sig.covers(sil, max(8.0, 0.05 * _outline_radius(sil)) + 3.0)
+    if inside.sum() < 8:
+        return False
+    return is_drawn_line(sig.img, sig.origin, sil[inside], _outline_radius(sil))
+
+
+def _outline_radius(sil: np.ndarray) -> float:
+    return float(np.mean(np.linalg.norm(sil - sil.mean(axis=0), axis=1)))
 
 
 def _several_held(sig: _Signal, res: CandidateFit, R: float, outside_bad: float) -> bool:

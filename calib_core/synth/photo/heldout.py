@@ -176,7 +176,7 @@ def outdoor(rng, rig, cam, T_wc, scale, with_ball, opts):
 FLOATS = (((0.95, 0.40, 0.06), 0.4), ((0.88, 0.88, 0.86), 0.25), ((0.92, 0.80, 0.10), 0.1), ((0.06, 0.06, 0.07), 0.25))
 
 
-def _water(rng, T_wc):
+def ocean_water(rng, T_wc):
     c_g = float(rng.uniform(0.06, 0.3))
     ocean = rng.random() < 0.5
     c_rgb = (c_g + float(rng.uniform(0.3, 0.7)), c_g, c_g * float(rng.uniform(0.5, 0.9) if ocean else rng.uniform(1.2, 2.0)))
@@ -193,7 +193,7 @@ def _water(rng, T_wc):
     return water, spot
 
 
-def _seabed(rng, seabed_z: float, keep_clear) -> list:
+def seabed(rng, seabed_z: float, keep_clear) -> list:
     rock = rng.random() < 0.4
     alb = (0.36, 0.34, 0.30) if rock else (0.58, 0.53, 0.40)
     prims = [Rect((0, 0, seabed_z), (0, 0, 1), material=Material(tuple(np.array(alb) * rng.uniform(0.7, 1.2)), 0.5,
@@ -213,7 +213,7 @@ def _seabed(rng, seabed_z: float, keep_clear) -> list:
 
 def underwater(rng, rig, cam, T_wc, scale, with_ball, opts):
     radius = float(rng.uniform(0.05, 0.2))
-    water, spot = _water(rng, T_wc)
+    water, spot = ocean_water(rng, T_wc)
     eye = hp.eye_of(T_wc)
     has_bed = rng.random() < 0.7
     holder = str(rng.choice(["rope", "seabed", "tether", "hand"] if has_bed else ["rope", "hand"]))
@@ -229,8 +229,8 @@ def underwater(rng, rig, cam, T_wc, scale, with_ball, opts):
     alb = np.array(FLOATS[int(rng.choice(len(FLOATS), p=[f[1] for f in FLOATS]))][0]) * rng.uniform(0.85, 1.05)
     ball = Sphere(tuple(c), radius, Material(tuple(np.clip(alb, 0, 1)), 0.9, "foam", 0.02,
                                              float(rng.uniform(0.0, 0.08)), int(rng.integers(1 << 30))), tag="target")
-    static = _seabed(rng, seabed_z, [c]) if has_bed else []
-    parts = [ball] + _water_holder(rng, holder, ball, c, radius, seabed_z, surface_z, T_wc)
+    static = seabed(rng, seabed_z, [c]) if has_bed else []
+    parts = [ball] + water_holder(rng, holder, ball, c, radius, seabed_z, surface_z, T_wc)
     static = clear_view(static, ball, T_wc)
     look = BallLook(tuple(c), radius, ks=float(rng.uniform(0.0, 0.6)), shininess=float(rng.uniform(20, 100)))
     tilt = rng.normal(0, 0.25, 2)
@@ -254,7 +254,7 @@ def underwater(rng, rig, cam, T_wc, scale, with_ball, opts):
     return L, c, radius, photo, opts, label
 
 
-def _water_holder(rng, kind, ball, c, radius, seabed_z, surface_z, T_wc) -> list:
+def water_holder(rng, kind, ball, c, radius, seabed_z, surface_z, T_wc) -> list:
     if kind == "rope":
         rope = world.chain(rng, np.asarray(c) + [0, 0, radius * 0.95], surface_z, float(rng.uniform(0.004, 0.01)),
                            tag="stand", links=False)

@@ -31,9 +31,10 @@ from calib_core.synth.scene import Capsule, Group, Material, Scene, Sphere
 
 
 def place_by_size(rng, cam, T_wc, radius_m: float, r_px: tuple, ok=lambda c: True, min_dist_m: float = 0.3,
-                  v_range=(0.0, 1.0), tries: int = 600):
+                  v_range=(0.0, 1.0), tries: int = 600, u_range=(0.0, 1.0)):
     """World centre of a ball of ``radius_m`` seen with a radius in ``r_px`` (log-uniform), whole
-    in the image, its pixel's row in ``v_range`` (fractions of the height), passing ``ok``."""
+    in the image, its pixel's row in ``v_range`` and column in ``u_range`` (fractions of the
+    height and width), passing ``ok``."""
     f = 0.5 * (cam.fx + cam.fy)
     W, H = cam.width_px, cam.height_px
     hi = min(r_px[1], f * np.tan(np.arcsin(min(radius_m / min_dist_m, 0.99))))
@@ -44,8 +45,12 @@ def place_by_size(rng, cam, T_wc, radius_m: float, r_px: tuple, ok=lambda c: Tru
         m = 1.15 * r + 2
         if W <= 2 * m or H <= 2 * m:
             continue
-        u = rng.uniform(m, W - m)
-        v = rng.uniform(max(m, v_range[0] * H), min(H - m, v_range[1] * H)) if v_range[0] * H < H - m else H / 2
+        u_lo, u_hi = max(m, u_range[0] * W), min(W - m, u_range[1] * W)
+        v_lo, v_hi = max(m, v_range[0] * H), min(H - m, v_range[1] * H)
+        if u_lo > u_hi or (v_lo > v_hi and v_range[0] * H < H - m):
+            continue  # the ball at this size does not fit in the asked part of the frame
+        u = rng.uniform(u_lo, u_hi)
+        v = rng.uniform(v_lo, v_hi) if v_range[0] * H < H - m else H / 2
         ray = camera_rays(cam, np.array([[u, v]]))[0]
         sil = silhouette_uv(cam, d * ray, radius_m)
         c = transform_points(T_wc, (d * ray)[None])[0]

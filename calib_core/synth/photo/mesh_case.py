@@ -73,8 +73,8 @@ def _room_or_water(rng, c, radius, T_wc, holder):
     else:
         floor_z = float(min(eye[2] - 0.3, c[2] - radius) - rng.uniform(0.3, 1.3))
     if in_water:
-        water, _ = held._water(rng, T_wc)
-        static = held._seabed(rng, floor_z, [c]) if (holder == "floor" or rng.random() < 0.6) else []
+        water, _ = held.ocean_water(rng, T_wc)
+        static = held.seabed(rng, floor_z, [c]) if (holder == "floor" or rng.random() < 0.6) else []
         return static, water, floor_z, "water"
     return room.room_scene(rng, floor_z, [c]), room.room_air(rng), floor_z, "room"
 

@@ -58,7 +58,7 @@ def _tile_mat(rng) -> Material:
                     float(rng.uniform(0.4, 0.9)), int(rng.integers(1 << 30)))
 
 
-def _box(lo, hi, rng, glass_side: int):
+def tank_box(lo, hi, rng, glass_side: int):
     """Floor and four walls of the tank [lo, hi] (world, axis-aligned; normals inwards); the
     side wall y = hi (glass_side 1) or y = lo (-1) is a glass pane when glass_side != 0."""
     lo, hi = np.asarray(lo, float), np.asarray(hi, float)
@@ -120,7 +120,7 @@ def _holder(rng, holder, c, radius, floor_z, surface_z) -> list:
     return []
 
 
-def _pool_water(rng):
+def pool_water(rng):
     c_g = float(rng.uniform(0.03, 0.12))
     tint = np.array([0.06, 0.32, 0.45]) * rng.uniform(0.6, 1.2)
     return Water(c_g, tuple(tint), up_gain=float(rng.uniform(0.3, 0.9)), side_dir=(1.0, 0, 0), side_gain=0.0,
@@ -150,13 +150,13 @@ def tank(rng, rig, cam, T_wc, scale, with_ball, opts):
         c = _place(rng, cam, T_wc, radius, scale, holder)
     eye = hp.eye_of(T_wc)
     lo, hi, surface_z, glass_side = _tank_geometry(rng, eye, c, radius, holder)
-    water = _pool_water(rng)
+    water = pool_water(rng)
     alb = np.array(FLOATS[int(rng.integers(len(FLOATS)))]) * rng.uniform(0.85, 1.05)
     ball = Sphere(tuple(c), radius, Material(tuple(np.clip(alb, 0, 1)), 0.9, "foam", 0.02,
                                              float(rng.uniform(0.0, 0.08)), int(rng.integers(1 << 30))), tag="target")
     parts = [ball] + _holder(rng, holder, c, radius, lo[2], surface_z)
     surface = Rect((0, 0, surface_z), (0, 0, -1), tag="surface")
-    static = _box(lo, hi, rng, glass_side) + [surface]
+    static = tank_box(lo, hi, rng, glass_side) + [surface]
     look = BallLook(tuple(c), radius, ks=float(rng.uniform(0.0, 0.6)), shininess=float(rng.uniform(20, 100)))
     tilt = rng.normal(0, 0.2, 2)
     photo = replace(draw_photo(rng, c, radius, eye, look, scale), key_dir=(tilt[0], tilt[1], 1.0),
