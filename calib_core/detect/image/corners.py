@@ -7,15 +7,21 @@ grout, a cell of a caustic network or of a ripple-warped reflection, fitted by t
 keeps its stretches near the tangent points inside the 1 px inlier band: it looks round and
 mostly seen, and scored up to 0.97. Its inlier residuals still follow the shape around the
 outline: a square puts about 0.16 of its half-side into harmonic 4 (and 8), a blob's lobes into
-harmonics 3-8.
+harmonics 2-8 (the cone absorbs only the elongation its direction implies).
 
-The measure (:class:`Wobble`): harmonics 3-8 fitted by least squares (with 0-2) to the inlier
+The measure (:class:`Wobble`): harmonics 2-8 fitted by least squares (with 0-2) to the inlier
 residuals against their angle around the outline; their amplitude (root sum of squares, px),
 the amplitude that noise alone gives there (from the residuals left and the fit's covariance: a
 gap in the outline makes the fit less sure, and this says by how much), and the excess of the
 first over the second, relative to the apparent radius (a shape's deviation from a circle grows
 with its size; a ball's noise does not). An outline has corners when the excess is over
 MAX_WOBBLE_FRACTION of its radius and the amplitude over MIN_SIGNIFICANCE times the noise's.
+
+A gap in the outline (a holder, a dark side merging with the background) makes the harmonics
+less determined: their noise amplitude grows by ``inflation`` over a fully seen outline's, and a
+ball's smooth systematic deviation on the seen arc (a lopsided limb) is extrapolated into the gap
+as well. The limit grows with the square root of that inflation (a dim ball seen over 280 deg,
+inflation 17, read 0.059 of its radius; a tile seen over 290 deg, inflation 8.5, read 0.45).
 """
 
 from __future__ import annotations
@@ -32,9 +38,9 @@ FIRST_HARMONIC, TOP_HARMONIC = 2, 8
 MAX_GAP_DEG = 90.0
 # fewer inliers than this: no reading (17 parameters)
 MIN_INLIERS = 24
-# corners: the excess amplitude over this share of the radius (development seeds 1000-1039:
-# ball-free tiles and cells that scored 0.79-0.97 read 0.065-0.45, right balls <= 0.041 (a small
-# printed ball), most <= 0.03; BENCHMARKS.md "Session 25: falsecirc")
+# corners: the excess amplitude over this share of the radius, for a fully seen outline
+# (development seeds 1000-1039: ball-free tiles and cells that scored 0.79-0.97 read 0.065-0.45,
+# right balls <= 0.041 (a small printed ball), most <= 0.03; BENCHMARKS.md "Session 25: falsecirc")
 MAX_WOBBLE_FRACTION = 0.05
 # ... and the amplitude this many times what noise alone gives (a partly seen outline's fit is
 # loose: its amplitude must stand out from its own uncertainty)
@@ -43,11 +49,12 @@ MIN_SIGNIFICANCE = 2.0
 
 @dataclass(frozen=True)
 class Wobble:
-    """Harmonics 3-8 of an outline's inlier residuals: amplitude and noise's amplitude (px)."""
+    """Harmonics 2-8 of an outline's inlier residuals: amplitude and noise's amplitude (px)."""
 
     amplitude_px: float
     noise_px: float
     radius_px: float
+    inflation: float = 1.0  # the noise amplitude over a fully seen outline's with as many points
 
     @property
     def excess_fraction(self) -> float:
@@ -59,8 +66,13 @@ class Wobble:
         return float(self.amplitude_px / max(self.noise_px, 1e-9))
 
     @property
+    def limit_fraction(self) -> float:
+        """MAX_WOBBLE_FRACTION, grown with the square root of the gap's inflation."""
+        return float(MAX_WOBBLE_FRACTION * np.sqrt(max(self.inflation, 1.0)))
+
+    @property
     def has_corners(self) -> bool:
-        return bool(self.excess_fraction > MAX_WOBBLE_FRACTION and self.significance > MIN_SIGNIFICANCE)
+        return bool(self.excess_fraction > self.limit_fraction and self.significance > MIN_SIGNIFICANCE)
 
     @property
     def reason(self) -> str:
@@ -92,8 +104,10 @@ def wobble(phase_rad: np.ndarray, residuals_px: np.ndarray, radius_px: float) ->
     var_px2 = float(left @ left) / (len(left) - A.shape[1])
     ks = np.arange(FIRST_HARMONIC, TOP_HARMONIC + 1)
     cols = np.r_[ks, TOP_HARMONIC + ks]
-    cov = np.linalg.pinv(A.T @ A)[np.ix_(cols, cols)]
-    return Wobble(float(np.linalg.norm(coef[cols])), float(np.sqrt(var_px2 * np.trace(cov))), float(radius_px))
+    trace = float(np.trace(np.linalg.pinv(A.T @ A)[np.ix_(cols, cols)]))
+    # a fully seen outline: each cos / sin coefficient's variance is 2 var / N
+    inflation = float(np.sqrt(trace * len(residuals_px) / (2.0 * len(cols))))
+    return Wobble(float(np.linalg.norm(coef[cols])), float(np.sqrt(var_px2 * trace)), float(radius_px), inflation)
 
 
 def outline_wobble(inlier_index: np.ndarray, n_normals: int, residuals_px: np.ndarray,

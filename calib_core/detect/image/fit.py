@@ -87,7 +87,7 @@ class CandidateFit:
     range_m: float | None = None
     extras: dict = field(default_factory=dict)
     credible: bool = False
-    wobble: Wobble | None = None  # harmonics 3-8 of the inlier residuals (corners.py)
+    wobble: Wobble | None = None  # harmonics 2-8 of the inlier residuals (corners.py)
 
 
 def _polar_radius(cand: Candidate, dirs: np.ndarray) -> np.ndarray:
