@@ -106,3 +106,15 @@ def test_a_dark_tile_is_not_a_ball_and_a_ball_of_its_size_beside_it_is(corner_px
     assert det.found, det.reason
     assert np.hypot(*(det.center_uv_px - (W / 2, H / 2))) < 0.5
     assert det.score > 0.9
+
+
+def test_a_gap_in_the_outline_widens_the_limit():
+    """Harmonics of a partly seen outline are less determined (a dim ball seen over 280 deg read
+    0.059 of its radius): the limit grows with the square root of the noise's inflation."""
+    rng = np.random.default_rng(1)
+    full = wobble(np.linspace(0, 2 * np.pi, 250, endpoint=False), rng.normal(0, 0.25, 250), 100.0)
+    assert full.inflation == pytest.approx(1.0, abs=0.05)
+    assert full.limit_fraction == pytest.approx(MAX_WOBBLE_FRACTION, rel=0.03)
+    arc = wobble(np.linspace(0, np.radians(280), 250), rng.normal(0, 0.25, 250), 100.0)
+    assert arc.inflation > 5.0
+    assert arc.limit_fraction == pytest.approx(MAX_WOBBLE_FRACTION * np.sqrt(arc.inflation))
