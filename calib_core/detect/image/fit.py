@@ -27,6 +27,7 @@ from calib_core.detect.image.blur import (BLUR_MAX_RADIUS_FRACTION, CLEAN_RMS_FR
                                           SHARP_EDGE_WIDTH_PX, SMALL_RADIUS_PX, blur_floor_px2, clean_rms_px, is_blurred,
                                           outline_rms_limit_px)
 from calib_core.detect.image import smear
+from calib_core.detect.image.corners import Wobble, outline_wobble
 from calib_core.detect.image.limb import lopsided_floor_px2
 from calib_core.detect.image.overlay import is_drawn_line
 from calib_core.detect.image.region import Candidate
@@ -89,6 +90,7 @@ class CandidateFit:
     range_m: float | None = None
     extras: dict = field(default_factory=dict)
     credible: bool = False
+    wobble: Wobble | None = None  # harmonics 2-8 of the inlier residuals (corners.py)
 
 
 def _polar_radius(cand: Candidate, dirs: np.ndarray) -> np.ndarray:
@@ -480,6 +482,10 @@ def _fitted(cam, sig: _Signal, p2, R: float, sphere_radius_m: float) -> tuple[Ca
         res.extras["smear_deg"] = round(float(np.degrees(fit.smear.angle_rad)), 1)
     res.extras["outside_mismatch"] = round(outside_bad, 4)
     res.extras["outline_coverage"] = round(support, 3)
+    r_fit = float(np.mean(np.linalg.norm(sil_f - sil_f.mean(axis=0), axis=1)))
+    res.wobble = outline_wobble(np.flatnonzero(ok2)[fit.inliers], k2, fit.residuals_px[fit.inliers], r_fit)
+    if res.wobble is not None:
+        res.extras["outline_wobble"] = round(res.wobble.excess_fraction, 4)
     return res, outside_bad
 
 
@@ -495,11 +501,16 @@ def _judge(cam, res: CandidateFit, R: float, outside_bad: float, with_background
     # soft-edged part-circle in texture is easily had)
     width = res.extras.get("edge_width_px", np.nan) if support >= TIGHT_MIN_SUPPORT else np.nan
     clean = fit.sigma_px <= outline_rms_limit_px(min(R, r_fit), width)
+    # (a tile, a cell of a caustic network: round within the inlier band, not in its shape)
+    corners = res.wobble is not None and res.wobble.has_corners
+    clean = clean and not corners
     res.credible = support >= 0.45 and clean and outside_bad <= 0.2
     if not cam.in_image(sil_f, margin_px=1.0).all():
         res.ok = False
         partial_ok = support >= 0.3 and clean and outside_bad <= 0.25
         res.reason = "sphere cut by the image border" if partial_ok else "no round outline near the border"
+    elif corners:
+        res.ok, res.reason = False, res.wobble.reason
     elif not clean:
         res.ok, res.reason = False, f"outline not round (edge RMS {fit.sigma_px:.1f} px)"
     elif support < MIN_SUPPORT:
