@@ -91,3 +91,15 @@ def test_the_stereo_is_judged_against_the_detections_own_factor_not_against_one(
     assert f_rel > 2.0 * max(f_one, 1.0)
     rs = _solve(rig, T)  # iterated to agreement: 16.4 (the one-group estimate stopped at 3.2)
     assert rs.stereo_factor["factor"] > 8.0 and rs.stereo_factor["obs_factor"] < 0.5
+
+
+def test_the_phrase_does_not_call_a_stereo_within_its_sigma_less_certain():
+    # an exact stereo transform beside detections stated 2x too wide (synthetic seed 20): its residuals are
+    # 0.3x the assumed sigma, the detections' 0.5x theirs, and the floor widens it by 1 / their factor so
+    # that both groups agree; the data do not show it "less certain than assumed": the phrase says why
+    info = {"factor": 4.71, "chi2": 0.259, "redundancy": 3.743, "obs_factor": 0.212}
+    text = stereo_factor_phrase(info, True)
+    assert "less certain" not in text and "widened by a factor 4.71" in text
+    assert "0.3x its assumed sigma" in text and "0.5x" in text
+    worse = stereo_factor_phrase({"factor": 7.18, "chi2": 36.1, "redundancy": 4.9, "obs_factor": 1.0}, False)
+    assert "less certain than stated" in worse and "2.7x its stated sigma" in worse

@@ -123,14 +123,22 @@ def stereo_factor(prob_free: RigProblem, state, robust: str | None = None, relat
 
 
 def stereo_factor_phrase(info: dict, assumed: bool) -> str:
-    """"joint solve: the data show the stereo transform ..." when its covariance was widened, else ""."""
+    """"joint solve: ..." when the stereo transform's covariance was widened, else "": less certain
+    than stated when its own residuals say so; otherwise (its residuals within its sigma, the
+    detections' further within theirs) widened to match the detections' conservative covariances."""
     f = float((info or {}).get("factor") or 1.0)
     if f <= 1.0:
         return ""
     how = "assumed" if assumed else "stated"
     chi2, red = float(info.get("chi2", 0.0)), float(info.get("redundancy", 0.0))
+    own = chi2 / red if red > 0 else f
     f_obs = float(info.get("obs_factor") or 1.0)
-    return (f"joint solve: the images and the sonar show the stereo transform less certain than {how} "
-            f"(its residuals {(chi2 / red if red > 0 else f) ** 0.5:.1f}x the {how} sigma, the detections' "
-            f"{f_obs ** 0.5:.1f}x theirs; chi2 {chi2:.1f} on {red:.1f} dof): its covariance was widened by a "
-            f"factor {f:.2f} for the range scale's test and the reported uncertainties")
+    numbers = (f"the stereo transform's residuals {own ** 0.5:.1f}x its {how} sigma, the detections' "
+               f"{f_obs ** 0.5:.1f}x theirs; chi2 {chi2:.1f} on {red:.1f} dof")
+    if own > 1.0:
+        return (f"joint solve: the images and the sonar show the stereo transform less certain than {how} "
+                f"({numbers}): its covariance was widened by a factor {f:.2f} for the range scale's test and the "
+                f"reported uncertainties")
+    return (f"joint solve: the detections' covariances are conservative ({numbers}): the stereo transform's "
+            f"covariance was widened by a factor {f:.2f} to match them, for the range scale's test (every "
+            f"covariance right up to one common factor) and the reported uncertainties")
