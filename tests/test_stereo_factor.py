@@ -103,3 +103,19 @@ def test_the_phrase_does_not_call_a_stereo_within_its_sigma_less_certain():
     assert "0.3x its assumed sigma" in text and "0.5x" in text
     worse = stereo_factor_phrase({"factor": 7.18, "chi2": 36.1, "redundancy": 4.9, "obs_factor": 1.0}, False)
     assert "less certain than stated" in worse and "2.7x its stated sigma" in worse
+
+
+def test_a_robust_loss_does_not_read_as_conservative_detections():
+    # a Cauchy loss weighs every capture below 1 (1 / (1 + (m / 2.5)^2)): its weighted chi2 is about half the
+    # redundancy for detections exactly as stated, which the two-group estimate took for conservative
+    # detections: an exact stereo transform was widened by 1.99 instead of 1.33 (this draw's detections' own
+    # factor, 0.75, without a loss)
+    rig = synthetic_rig(21, n_captures=8, scale=1.0, sigma_px=0.1, sigma_m=0.001)
+    sols = {c: solve_camera(camera_data(c, rig.cameras[c], rig.capture_ids, rig.uv_px[c], rig.cov_uv_px2[c],
+                                        rig.X_sonar_m, rig.cov_X_m2), estimate_scale=False, loo=False)
+            for c in ("cam1", "cam2")}
+    plain = solve_rig(sols, {"cam2": Link(rig.T_cam2_cam1, default_stereo_cov())}, "cam1")
+    for loss in ("huber", "cauchy"):
+        rs = solve_rig(sols, {"cam2": Link(rig.T_cam2_cam1, default_stereo_cov())}, "cam1", robust=loss)
+        assert abs(rs.stereo_factor["obs_factor"] / plain.stereo_factor["obs_factor"] - 1.0) < 0.1, loss
+        assert abs(rs.stereo_factor["factor"] / plain.stereo_factor["factor"] - 1.0) < 0.1, loss
