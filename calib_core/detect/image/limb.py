@@ -20,11 +20,13 @@ how far it may be off.
 from __future__ import annotations
 
 import numpy as np
+from scipy.stats import chi2
 
 LOPSIDED_ORDERS = (2, 3)
 LOPSIDED_HARMONIC_FACTOR = 1.0
-# the harmonics count when their chi-square against the edges' scatter passes this (4 dof, 99 %)
-LOPSIDED_SIGNIFICANCE_CHI2 = 13.28
+# the harmonics count when their chi-square against the edges' scatter passes this point (2 dof an order)
+LOPSIDED_SIGNIFICANCE = 0.99
+LOPSIDED_SIGNIFICANCE_CHI2 = float(chi2.ppf(LOPSIDED_SIGNIFICANCE, 2 * len(LOPSIDED_ORDERS)))
 
 
 def harmonic_fit(residuals_px: np.ndarray, angles_rad: np.ndarray, orders=LOPSIDED_ORDERS):
