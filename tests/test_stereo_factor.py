@@ -119,3 +119,12 @@ def test_a_robust_loss_does_not_read_as_conservative_detections():
         rs = solve_rig(sols, {"cam2": Link(rig.T_cam2_cam1, default_stereo_cov())}, "cam1", robust=loss)
         assert abs(rs.stereo_factor["obs_factor"] / plain.stereo_factor["obs_factor"] - 1.0) < 0.1, loss
         assert abs(rs.stereo_factor["factor"] / plain.stereo_factor["factor"] - 1.0) < 0.1, loss
+
+
+def test_with_the_scale_held_the_phrase_names_no_scale_test():
+    # --no-scale: no range scale's test is run; the widened covariance goes into the reported uncertainties only
+    rig = synthetic_rig(21, n_captures=8, scale=1.0, sigma_px=0.1, sigma_m=0.001)
+    held = _solve(rig, _checkerboard_like(rig), False)
+    text = stereo_factor_phrase(held.stereo_factor, True)
+    assert "widened by a factor" in text and "scale" not in text
+    assert "range scale's test" in stereo_factor_phrase(_solve(rig, _checkerboard_like(rig)).stereo_factor, True)

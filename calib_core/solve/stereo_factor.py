@@ -136,10 +136,11 @@ def stereo_factor_phrase(info: dict, assumed: bool) -> str:
     f_obs = float(info.get("obs_factor") or 1.0)
     numbers = (f"the stereo transform's residuals {own ** 0.5:.1f}x its {how} sigma, the detections' "
                f"{f_obs ** 0.5:.1f}x theirs; chi2 {chi2:.1f} on {red:.1f} dof")
+    used = "the reported uncertainties" if info.get("scale_held") else \
+        "the range scale's test and the reported uncertainties"
     if own > 1.0:
         return (f"joint solve: the images and the sonar show the stereo transform less certain than {how} "
-                f"({numbers}): its covariance was widened by a factor {f:.2f} for the range scale's test and the "
-                f"reported uncertainties")
+                f"({numbers}): its covariance was widened by a factor {f:.2f} for {used}")
     return (f"joint solve: the detections' covariances are conservative ({numbers}): the stereo transform's "
-            f"covariance was widened by a factor {f:.2f} to match them, for the range scale's test (every "
-            f"covariance right up to one common factor) and the reported uncertainties")
+            f"covariance was widened by a factor {f:.2f} to match them (one common factor for every covariance), "
+            f"for {used}")
