@@ -91,3 +91,40 @@ def test_the_stereo_is_judged_against_the_detections_own_factor_not_against_one(
     assert f_rel > 2.0 * max(f_one, 1.0)
     rs = _solve(rig, T)  # iterated to agreement: 16.4 (the one-group estimate stopped at 3.2)
     assert rs.stereo_factor["factor"] > 8.0 and rs.stereo_factor["obs_factor"] < 0.5
+
+
+def test_the_phrase_does_not_call_a_stereo_within_its_sigma_less_certain():
+    # an exact stereo transform beside detections stated 2x too wide (synthetic seed 20): its residuals are
+    # 0.3x the assumed sigma, the detections' 0.5x theirs, and the floor widens it by 1 / their factor so
+    # that both groups agree; the data do not show it "less certain than assumed": the phrase says why
+    info = {"factor": 4.71, "chi2": 0.259, "redundancy": 3.743, "obs_factor": 0.212}
+    text = stereo_factor_phrase(info, True)
+    assert "less certain" not in text and "widened by a factor 4.71" in text
+    assert "0.3x its assumed sigma" in text and "0.5x" in text
+    worse = stereo_factor_phrase({"factor": 7.18, "chi2": 36.1, "redundancy": 4.9, "obs_factor": 1.0}, False)
+    assert "less certain than stated" in worse and "2.7x its stated sigma" in worse
+
+
+def test_a_robust_loss_does_not_read_as_conservative_detections():
+    # a Cauchy loss weighs every capture below 1 (1 / (1 + (m / 2.5)^2)): its weighted chi2 is about half the
+    # redundancy for detections exactly as stated, which the two-group estimate took for conservative
+    # detections: an exact stereo transform was widened by 1.99 instead of 1.33 (this draw's detections' own
+    # factor, 0.75, without a loss)
+    rig = synthetic_rig(21, n_captures=8, scale=1.0, sigma_px=0.1, sigma_m=0.001)
+    sols = {c: solve_camera(camera_data(c, rig.cameras[c], rig.capture_ids, rig.uv_px[c], rig.cov_uv_px2[c],
+                                        rig.X_sonar_m, rig.cov_X_m2), estimate_scale=False, loo=False)
+            for c in ("cam1", "cam2")}
+    plain = solve_rig(sols, {"cam2": Link(rig.T_cam2_cam1, default_stereo_cov())}, "cam1")
+    for loss in ("huber", "cauchy"):
+        rs = solve_rig(sols, {"cam2": Link(rig.T_cam2_cam1, default_stereo_cov())}, "cam1", robust=loss)
+        assert abs(rs.stereo_factor["obs_factor"] / plain.stereo_factor["obs_factor"] - 1.0) < 0.1, loss
+        assert abs(rs.stereo_factor["factor"] / plain.stereo_factor["factor"] - 1.0) < 0.1, loss
+
+
+def test_with_the_scale_held_the_phrase_names_no_scale_test():
+    # --no-scale: no range scale's test is run; the widened covariance goes into the reported uncertainties only
+    rig = synthetic_rig(21, n_captures=8, scale=1.0, sigma_px=0.1, sigma_m=0.001)
+    held = _solve(rig, _checkerboard_like(rig), False)
+    text = stereo_factor_phrase(held.stereo_factor, True)
+    assert "widened by a factor" in text and "scale" not in text
+    assert "range scale's test" in stereo_factor_phrase(_solve(rig, _checkerboard_like(rig)).stereo_factor, True)

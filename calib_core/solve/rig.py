@@ -91,6 +91,7 @@ def solve_rig(solutions: dict[str, CameraSolution], links: dict[str, Link], refe
     prob_s = RigProblem(cams, masks, {n: links[n] for n in names[1:]}, estimate_scale=True)
     # the stereo block judged by the data (calib_core.solve.stereo_factor): widened when worse than stated
     factor, s_info, prob_s, res_s = stereo_factor(prob_s, res.state, robust)
+    s_info["scale_held"] = scale_mode(estimate_scale) == "never"  # (no scale test: the phrase says so)
     if factor != 1.0:  # both models of the scale's test with the same stereo covariance
         prob = widened(prob, factor)
         res = refine(prob, res.state, robust=robust)

@@ -51,10 +51,12 @@ def prior_rows(problem: RigProblem) -> slice:
     return slice(start, start + 6 * len(problem.free_links))
 
 
-def group_factors(problem: RigProblem, res: RefineResult, robust: str | None = None) -> dict:
+def group_factors(problem: RigProblem, res: RefineResult) -> dict:
     """The stereo priors' and the observations' variance factors at ``res``: {"prior": (chi2,
-    redundancy), "obs": (chi2, redundancy)}, redundancy the sum of 1 - leverage over the group's rows."""
-    Ws, _ = weights_for(problem, res.state, robust, 2.5)
+    redundancy), "obs": (chi2, redundancy)}, redundancy the sum of 1 - leverage over the group's rows.
+    With the stated covariances as they are, whatever loss the fit used: a robust loss's weights
+    (below 1 for every capture with Cauchy's) would read as detections stated conservatively."""
+    Ws, _ = weights_for(problem, res.state, None, 2.5)
     J = jacobian(problem, res.state, Ws)
     h = np.einsum("ij,jk,ik->i", J, np.linalg.pinv(J.T @ J), J)
     r = problem.whitened(res.state, Ws)
@@ -63,8 +65,7 @@ def group_factors(problem: RigProblem, res: RefineResult, robust: str | None = N
     return {k: (float(r[m] @ r[m]), float(np.sum(1.0 - h[m]))) for k, m in (("prior", prior), ("obs", ~prior))}
 
 
-def block_factor(problem: RigProblem, res: RefineResult, robust: str | None = None,
-                 relative: bool = True) -> tuple[float, float, float, float]:
+def block_factor(problem: RigProblem, res: RefineResult, relative: bool = True) -> tuple[float, float, float, float]:
     """(factor, chi2, redundancy, the observations' factor) of the stereo priors at ``res``
     (factor 1 without free links).
 
@@ -72,7 +73,7 @@ def block_factor(problem: RigProblem, res: RefineResult, robust: str | None = No
     module doc); False: against 1 (the one-group estimate before)."""
     if not problem.free_links:
         return 1.0, 0.0, 0.0, 1.0
-    g = group_factors(problem, res, robust)
+    g = group_factors(problem, res)
     chi2, redundancy = g["prior"]
     chi2_obs, red_obs = g["obs"]
     f_obs = chi2_obs / red_obs if red_obs > 0.5 and chi2_obs > 0.0 else 1.0
@@ -109,7 +110,7 @@ def stereo_factor(prob_free: RigProblem, state, robust: str | None = None, relat
     if not prob_free.free_links:  # nothing to judge (stereo transforms held exactly)
         return total, info, prob, res
     for it in range(MAX_ITER):
-        f, chi2, red, f_obs = block_factor(prob, res, robust, relative)
+        f, chi2, red, f_obs = block_factor(prob, res, relative)
         if it == 0:  # as first seen, with the stereo as stated
             info.update(chi2=chi2, redundancy=red, obs_factor=f_obs if relative else 1.0)
         new = max(floor_factor(f_obs) if relative else 1.0, total * f)
@@ -123,14 +124,23 @@ def stereo_factor(prob_free: RigProblem, state, robust: str | None = None, relat
 
 
 def stereo_factor_phrase(info: dict, assumed: bool) -> str:
-    """"joint solve: the data show the stereo transform ..." when its covariance was widened, else ""."""
+    """"joint solve: ..." when the stereo transform's covariance was widened, else "": less certain
+    than stated when its own residuals say so; otherwise (its residuals within its sigma, the
+    detections' further within theirs) widened to match the detections' conservative covariances."""
     f = float((info or {}).get("factor") or 1.0)
     if f <= 1.0:
         return ""
     how = "assumed" if assumed else "stated"
     chi2, red = float(info.get("chi2", 0.0)), float(info.get("redundancy", 0.0))
+    own = chi2 / red if red > 0 else f
     f_obs = float(info.get("obs_factor") or 1.0)
-    return (f"joint solve: the images and the sonar show the stereo transform less certain than {how} "
-            f"(its residuals {(chi2 / red if red > 0 else f) ** 0.5:.1f}x the {how} sigma, the detections' "
-            f"{f_obs ** 0.5:.1f}x theirs; chi2 {chi2:.1f} on {red:.1f} dof): its covariance was widened by a "
-            f"factor {f:.2f} for the range scale's test and the reported uncertainties")
+    numbers = (f"the stereo transform's residuals {own ** 0.5:.1f}x its {how} sigma, the detections' "
+               f"{f_obs ** 0.5:.1f}x theirs; chi2 {chi2:.1f} on {red:.1f} dof")
+    used = "the reported uncertainties" if info.get("scale_held") else \
+        "the range scale's test and the reported uncertainties"
+    if own > 1.0:
+        return (f"joint solve: the images and the sonar show the stereo transform less certain than {how} "
+                f"({numbers}): its covariance was widened by a factor {f:.2f} for {used}")
+    return (f"joint solve: the detections' covariances are conservative ({numbers}): the stereo transform's "
+            f"covariance was widened by a factor {f:.2f} to match them (one common factor for every covariance), "
+            f"for {used}")

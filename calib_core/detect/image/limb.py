@@ -20,15 +20,21 @@ how far it may be off.
 from __future__ import annotations
 
 import numpy as np
+from scipy.stats import chi2
 
 LOPSIDED_ORDERS = (2, 3)
 LOPSIDED_HARMONIC_FACTOR = 1.0
+# the harmonics count when their chi-square against the edges' scatter passes this point (2 dof an order)
+LOPSIDED_SIGNIFICANCE = 0.99
+LOPSIDED_SIGNIFICANCE_CHI2 = float(chi2.ppf(LOPSIDED_SIGNIFICANCE, 2 * len(LOPSIDED_ORDERS)))
 
 
-def harmonic_power_px2(residuals_px: np.ndarray, angles_rad: np.ndarray, orders=LOPSIDED_ORDERS) -> float:
-    """Mean power per component (px^2) of the outline residuals' harmonics ``orders`` (least
-    squares over the points seen, with the constant and the first harmonic, which the cone fit
-    took into its radius and centre, fitted alongside); 0 with too few points."""
+def harmonic_fit(residuals_px: np.ndarray, angles_rad: np.ndarray, orders=LOPSIDED_ORDERS):
+    """(coefficients px (2 len(orders),), their covariance per unit residual variance) of the
+    outline residuals' harmonics ``orders`` (least squares over the points seen, with the constant
+    and the first harmonic, which the cone fit took into its radius and centre, fitted alongside);
+    None with too few points. On an arc the columns are nearly collinear: the covariance says how
+    much the fit amplifies the edges' noise there (2 / N per component on a whole outline)."""
     r = np.asarray(residuals_px, float)
     th = np.asarray(angles_rad, float)
     ok = np.isfinite(r) & np.isfinite(th)
@@ -36,9 +42,17 @@ def harmonic_power_px2(residuals_px: np.ndarray, angles_rad: np.ndarray, orders=
     for k in orders:
         cols += [np.cos(k * th[ok]), np.sin(k * th[ok])]
     if ok.sum() < 2 * len(cols):
-        return 0.0
-    coef, *_ = np.linalg.lstsq(np.column_stack(cols), r[ok], rcond=None)
-    return float(np.mean(coef[3:] ** 2))
+        return None
+    A = np.column_stack(cols)
+    coef, *_ = np.linalg.lstsq(A, r[ok], rcond=None)
+    return coef[3:], np.linalg.pinv(A.T @ A)[3:, 3:]
+
+
+def harmonic_power_px2(residuals_px: np.ndarray, angles_rad: np.ndarray, orders=LOPSIDED_ORDERS) -> float:
+    """Mean power per component (px^2) of the outline residuals' harmonics ``orders``
+    (:func:`harmonic_fit`); 0 with too few points."""
+    fit = harmonic_fit(residuals_px, angles_rad, orders)
+    return 0.0 if fit is None else float(np.mean(fit[0] ** 2))
 
 
 def lopsided_floor_px2(residuals_px: np.ndarray, angles_rad: np.ndarray, edge_rms_px: float,
@@ -46,9 +60,16 @@ def lopsided_floor_px2(residuals_px: np.ndarray, angles_rad: np.ndarray, edge_rm
     """Variance (px^2) per image axis of the centre from a lopsided limb: the outline residuals'
     (px, inliers) harmonics LOPSIDED_ORDERS at the edges' angles around the outline (rad), less
     the power the edges' own scatter (``edge_rms_px``, correlated over ``corr_points``
-    neighbours) puts in one component (2 sigma^2 c / N), x LOPSIDED_HARMONIC_FACTOR^2."""
-    n = int(np.isfinite(np.asarray(residuals_px, float)).sum())
-    if n == 0:
+    neighbours) puts in one component (2 sigma^2 c / N on a whole outline, more on an arc), x
+    LOPSIDED_HARMONIC_FACTOR^2; 0 unless the harmonics stand out from that scatter
+    (LOPSIDED_SIGNIFICANCE_CHI2): on a partly hidden outline the noise alone, amplified by the
+    nearly collinear harmonics, would otherwise leave a floor of px."""
+    fit = harmonic_fit(residuals_px, angles_rad)
+    if fit is None:
         return 0.0
-    noise = 2.0 * edge_rms_px ** 2 * max(corr_points, 1.0) / n
-    return float(LOPSIDED_HARMONIC_FACTOR ** 2 * max(0.0, harmonic_power_px2(residuals_px, angles_rad) - noise))
+    coef, unit_cov = fit
+    noise_px2 = edge_rms_px ** 2 * max(corr_points, 1.0)
+    if noise_px2 > 0.0 and float(coef @ np.linalg.pinv(unit_cov) @ coef) < LOPSIDED_SIGNIFICANCE_CHI2 * noise_px2:
+        return 0.0
+    noise = noise_px2 * float(np.mean(np.diag(unit_cov)))
+    return float(LOPSIDED_HARMONIC_FACTOR ** 2 * max(0.0, float(np.mean(coef ** 2)) - noise))
