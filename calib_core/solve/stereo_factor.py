@@ -41,6 +41,15 @@ import numpy as np
 from calib_core.solve.refine import Link, RefineResult, RigProblem, jacobian, refine, weights_for
 
 MAX_ITER = 4
+# The detections' own factor is read with a prior of this many degrees of freedom at 1 (shrunk
+# towards 1 where the data have few): with 4 captures of two cameras it rests on ~3 dof, read as
+# low as 0.14, and 1 / that widened an exact stereo transform up to 9.5x (review6's
+# bench_stereo_factor_cases.py), throwing away the baseline's hold on the scale.
+OBS_PRIOR_DOF = 4.0
+# The shells say the stereo covariance was widened from this factor on (its sigma 1.4x): an exact
+# stereo transform reads 1.0-1.9 from the noise alone (bench_stereo_factor_cases.py, 4-9 captures),
+# and a warning in a third of sound sessions would teach users to skip warnings.
+PHRASE_MIN_FACTOR = 2.0
 # the block's factor is re-estimated until it changes by less than this (relative)
 TOL = 0.05
 
@@ -76,7 +85,7 @@ def block_factor(problem: RigProblem, res: RefineResult, relative: bool = True) 
     g = group_factors(problem, res)
     chi2, redundancy = g["prior"]
     chi2_obs, red_obs = g["obs"]
-    f_obs = chi2_obs / red_obs if red_obs > 0.5 and chi2_obs > 0.0 else 1.0
+    f_obs = (chi2_obs + OBS_PRIOR_DOF) / (red_obs + OBS_PRIOR_DOF) if chi2_obs > 0.0 else 1.0
     if redundancy <= 0.5:
         return 1.0, chi2, redundancy, f_obs
     f = chi2 / redundancy
@@ -128,7 +137,7 @@ def stereo_factor_phrase(info: dict, assumed: bool) -> str:
     than stated when its own residuals say so; otherwise (its residuals within its sigma, the
     detections' further within theirs) widened to match the detections' conservative covariances."""
     f = float((info or {}).get("factor") or 1.0)
-    if f <= 1.0:
+    if f < PHRASE_MIN_FACTOR:  # recorded in calibration.json all the same
         return ""
     how = "assumed" if assumed else "stated"
     chi2, red = float(info.get("chi2", 0.0)), float(info.get("redundancy", 0.0))
