@@ -39,7 +39,7 @@ sys.path.insert(0, str(ROOT))
 from calib_core.detect.image import predicted as image_predicted  # noqa: E402
 from calib_core.detect.image.detect import prepare_background  # noqa: E402
 from calib_core.detect.image.cone import fit_cone, normalize_near  # noqa: E402
-from calib_core.detect.image.fit import CORR_LENGTH_PX, EDGE_SPACING_PX, _Signal  # noqa: E402
+from calib_core.detect.image.fit import CORR_LENGTH_PX, EDGE_SPACING_PX, Signal  # noqa: E402
 from calib_core.detect.image.predicted import detect_at_prediction  # noqa: E402
 from calib_core.detect.reasons import reason_kind  # noqa: E402
 from calib_core.synth.image_cases import render_case  # noqa: E402
@@ -57,7 +57,7 @@ def free_refit_range(image, cam, radius_m: float, uv, r_pred: float, background,
     band = max(3.0, shift_frac * r_pred) + (image_predicted.NULL_SHIFT + TOL_FRAC) * r_pred + 2.0
     m, (H, W) = int(r_pred + 2 * band + 8), image.shape[:2]
     box = (max(0, int(uv[0]) - m), max(0, int(uv[1]) - m), min(W, int(uv[0]) + m + 1), min(H, int(uv[1]) + m + 1))
-    sig = _Signal(image, None if background is None else prepare_background(background).image, box)
+    sig = Signal(image, None if background is None else prepare_background(background).image, box)
     pts, normal_of, _, _, _ = image_predicted.edge_points(cam, sig, w0, a0, band)
     xy = normalize_near(cam, pts)
     w = cam.rays(np.asarray(det.center_uv_px, float).reshape(1, 2))[0]

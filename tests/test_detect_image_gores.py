@@ -11,7 +11,7 @@ import pytest
 
 from calib_core.detect.image.detect import detect_sphere_in_image
 from calib_core.detect.image.fit import (SEVERAL_MIN_INSIDE_AGREEMENT, _inside_colour_agreement,
-                                         _inside_colour_arcs, _Signal)
+                                         _inside_colour_arcs, Signal)
 from calib_core.synth.image_cases import render_case
 
 GORES = np.array([[220, 40, 40], [40, 90, 220], [240, 210, 30], [40, 170, 70], [235, 235, 235]], np.uint8)
@@ -33,7 +33,7 @@ def _ball(n_gores: int) -> np.ndarray:
 
 @pytest.mark.parametrize("n_gores", [4, 6, 8])
 def test_gored_ball_has_one_hue_per_arc_not_one_hue(n_gores):
-    sig = _Signal(_ball(n_gores), None, (0, 0, 200, 200))
+    sig = Signal(_ball(n_gores), None, (0, 0, 200, 200))
     sil = _outline(60.0)
     assert _inside_colour_agreement(sig, sil, 60.0) < SEVERAL_MIN_INSIDE_AGREEMENT
     assert _inside_colour_arcs(sig, sil, 60.0) >= SEVERAL_MIN_INSIDE_AGREEMENT
@@ -43,7 +43,7 @@ def test_circle_through_coloured_texture_has_no_long_arcs():
     rng = np.random.default_rng(3)
     blocks = rng.integers(0, 256, (25, 25, 3)).astype(np.uint8)
     img = np.kron(blocks, np.ones((8, 8, 1), np.uint8))  # 8 px patches of random colour
-    sig = _Signal(img, None, (0, 0, 200, 200))
+    sig = Signal(img, None, (0, 0, 200, 200))
     assert _inside_colour_arcs(sig, _outline(60.0), 60.0) < SEVERAL_MIN_INSIDE_AGREEMENT
 
 
@@ -67,7 +67,7 @@ def _two_textured_surfaces(seed=5) -> np.ndarray:
 def test_circle_straddling_two_textured_surfaces_has_no_colour_step():
     """Motion s1020: a circle across the wall/floor line has two long arcs of one hue each,
     but on each arc the colour goes on outside it: no step beyond the texture's own."""
-    sig = _Signal(_two_textured_surfaces(), None, (0, 0, 200, 200))
+    sig = Signal(_two_textured_surfaces(), None, (0, 0, 200, 200))
     sil = _outline(40.0)
     assert _inside_colour_agreement(sig, sil, 40.0) < SEVERAL_MIN_INSIDE_AGREEMENT
     assert _inside_colour_arcs(sig, sil, 40.0) < SEVERAL_MIN_INSIDE_AGREEMENT
@@ -79,7 +79,7 @@ def test_gored_ball_on_textured_surfaces_keeps_its_arcs():
     ball = _ball(4)
     inside = np.hypot(*(np.mgrid[:200, :200] - 100)) < 60
     img[inside] = ball[inside]
-    sig = _Signal(img, None, (0, 0, 200, 200))
+    sig = Signal(img, None, (0, 0, 200, 200))
     assert _inside_colour_arcs(sig, _outline(60.0), 60.0) >= SEVERAL_MIN_INSIDE_AGREEMENT
 
 

@@ -14,7 +14,7 @@ import pytest
 from calib_core.camera import CameraModel
 from calib_core.detect.image.detect import detect_sphere_in_image
 from calib_core.detect.image.cone import fit_cone, normalize_near
-from calib_core.detect.image.fit import _arc_held, _Signal
+from calib_core.detect.image.fit import _arc_held, Signal
 from calib_core.synth.image_cases import render_case
 
 
@@ -46,14 +46,14 @@ def _arc_points(r=60.0, span=np.pi, n=40):
 
 def test_clean_half_outline_of_one_surface_is_a_start():
     cam = _cam()
-    sig = _Signal(_disc_image((180, 40, 40)), None, (0, 0, 400, 400))
+    sig = Signal(_disc_image((180, 40, 40)), None, (0, 0, 400, 400))
     fit, seg_in = _arc_fit(cam, _arc_points(), 120)  # 40 of 120 rays: under pass 1's 40 %
     assert _arc_held(cam, sig, fit, seg_in, 60.0)
 
 
 def test_arc_with_two_surfaces_inside_is_not_a_start():
     cam = _cam()
-    sig = _Signal(_disc_image((180, 40, 40), split_rgb=(40, 60, 200)), None, (0, 0, 400, 400))
+    sig = Signal(_disc_image((180, 40, 40), split_rgb=(40, 60, 200)), None, (0, 0, 400, 400))
     fit, seg_in = _arc_fit(cam, _arc_points(), 120)
     assert not _arc_held(cam, sig, fit, seg_in, 60.0)
 
@@ -62,7 +62,7 @@ def test_short_arc_whose_circle_is_unconstrained_is_not_a_start():
     """A 30 deg arc with 0.4 px of scatter: the far side of its circle is uncertain by more
     than pass 2's band."""
     cam = _cam()
-    sig = _Signal(_disc_image((180, 40, 40)), None, (0, 0, 400, 400))
+    sig = Signal(_disc_image((180, 40, 40)), None, (0, 0, 400, 400))
     uv = _arc_points(span=np.pi / 6, n=40)
     uv = uv + np.random.default_rng(1).normal(0, 0.4, uv.shape) * ((uv - 200) / 60.0)
     fit, seg_in = _arc_fit(cam, uv, 120)
@@ -71,7 +71,7 @@ def test_short_arc_whose_circle_is_unconstrained_is_not_a_start():
 
 def test_too_few_rays_are_not_a_start():
     cam = _cam()
-    sig = _Signal(_disc_image((180, 40, 40)), None, (0, 0, 400, 400))
+    sig = Signal(_disc_image((180, 40, 40)), None, (0, 0, 400, 400))
     fit, seg_in = _arc_fit(cam, _arc_points(n=20), 120)  # 1/6 of the rays
     assert not _arc_held(cam, sig, fit, seg_in, 60.0)
 

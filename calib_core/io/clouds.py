@@ -46,14 +46,9 @@ class Cloud:
         return len(self.points_m)
 
 
-def load_cloud(path: str | Path, allow_nonfinite: bool = True) -> Cloud:
-    """Load a point cloud; reject empty clouds. Points with NaN or infinite coordinates mean
-    "no return" in organised clouds (PCL, depth cameras, LiDAR drivers): they are dropped and
-    counted (``Cloud.n_without_return``), as are points at exactly (0, 0, 0), the sensor's own
-    origin; a cloud with nothing else is refused.
-    ``allow_nonfinite=False`` refuses NaN or infinite points instead (points at exactly
-    (0, 0, 0) are dropped and counted either way)."""
-    path = Path(path)
+def _checked_file(path: Path) -> str:
+    """The cloud file's suffix (lower case), after checking it exists, has a known format and a
+    size this tool loads."""
     if not path.is_file():
         raise SessionError(path, "point cloud file not found")
     suffix = path.suffix.lower()
@@ -65,6 +60,18 @@ def load_cloud(path: str | Path, allow_nonfinite: bool = True) -> Cloud:
     if size > MAX_CLOUD_BYTES:
         raise SessionError(path, f"point cloud file is {size / 2**30:.1f} GiB, more than the {MAX_CLOUD_BYTES / 2**30:.0f} GiB "
                                  "this tool loads (thin the cloud or crop it to the work area)")
+    return suffix
+
+
+def load_cloud(path: str | Path, allow_nonfinite: bool = True) -> Cloud:
+    """Load a point cloud; reject empty clouds. Points with NaN or infinite coordinates mean
+    "no return" in organised clouds (PCL, depth cameras, LiDAR drivers): they are dropped and
+    counted (``Cloud.n_without_return``), as are points at exactly (0, 0, 0), the sensor's own
+    origin; a cloud with nothing else is refused.
+    ``allow_nonfinite=False`` refuses NaN or infinite points instead (points at exactly
+    (0, 0, 0) are dropped and counted either way)."""
+    path = Path(path)
+    suffix = _checked_file(path)
     try:
         pts, inten = _READERS[suffix](path)
     except SessionError:

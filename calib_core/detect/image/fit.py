@@ -101,7 +101,7 @@ def _polar_radius(cand: Candidate, dirs: np.ndarray) -> np.ndarray:
     return 1.0 / np.sqrt((u / max(a, 1e-6)) ** 2 + (v / max(b, 1e-6)) ** 2)
 
 
-class _Signal:
+class Signal:
     """Samples the 'sphere vs surroundings' signal inside a region of interest."""
 
     def __init__(self, image: np.ndarray, background: np.ndarray | None, box):
@@ -120,7 +120,7 @@ class _Signal:
             self.img = smooth_roi(image, x0, y0, x1, y1, SMOOTH_SIGMA_PX)
         self._noise = None
 
-    def around(self, pts: np.ndarray, margin_px: float) -> "_Signal":
+    def around(self, pts: np.ndarray, margin_px: float) -> "Signal":
         """This signal, or the same over a region widened to hold ``pts`` (K,2 px) and their
         ``margin_px`` neighbourhood (a reading that looks farther than the region was cut for:
         the smear's ramp windows; the region is sized from the candidate's coarse radius)."""
@@ -132,7 +132,7 @@ class _Signal:
         x0, y0, x1, y1 = self.box
         box = (max(0, min(x0, int(lo[0]))), max(0, min(y0, int(lo[1]))),
                min(W, max(x1, int(hi[0]))), min(H, max(y1, int(hi[1]))))
-        return _Signal(image, background, box)
+        return Signal(image, background, box)
 
     def covers(self, pts: np.ndarray, margin_px: float) -> np.ndarray:
         """(K,) True where a point and its ``margin_px`` neighbourhood lie in the region (outside
@@ -197,7 +197,7 @@ def refine_candidate(image: np.ndarray, cam: CameraModel, cand: Candidate, spher
            min(W, int(cand.centre_px[0]) + m + 1), min(H, int(cand.centre_px[1]) + m + 1))
     if box[2] - box[0] < 8 or box[3] - box[1] < 8:
         return CandidateFit(False, "no round outline")
-    sig = _Signal(image, background, box)
+    sig = Signal(image, background, box)
     starts = _first_pass(cam, sig, cand, R, band, a_range_rad, rng)
     if isinstance(starts, str):
         return CandidateFit(False, starts)
@@ -212,7 +212,7 @@ def refine_candidate(image: np.ndarray, cam: CameraModel, cand: Candidate, spher
     return CandidateFit(False, "no round outline")
 
 
-def _grown(cam, sig: _Signal, fit1: ConeFit, R: float, a_range_rad, rng, sphere_radius_m: float) -> CandidateFit:
+def _grown(cam, sig: Signal, fit1: ConeFit, R: float, a_range_rad, rng, sphere_radius_m: float) -> CandidateFit:
     """Pass 2 from one pass-1 start, judged."""
     # ---- pass 2: along the normals of the fitted silhouette, narrow band (twice when the
     # first pass-2 fit is still rough: clutter drew pass 1 off the outline)
@@ -237,7 +237,7 @@ def _grown(cam, sig: _Signal, fit1: ConeFit, R: float, a_range_rad, rng, sphere_
 DRAWN_LINE = "a round line drawn over the image (an overlay), not an outline"
 
 
-def _drawn_over(sig: _Signal, res: CandidateFit) -> bool:
+def _drawn_over(sig: Signal, res: CandidateFit) -> bool:
     """The accepted outline is a thin line drawn over one surface (:mod:`.overlay`)."""
     sil = res.silhouette_px
     inside = sig.covers(sil, max(8.0, 0.05 * _outline_radius(sil)) + 3.0)
@@ -250,7 +250,7 @@ def _outline_radius(sil: np.ndarray) -> float:
     return float(np.mean(np.linalg.norm(sil - sil.mean(axis=0), axis=1)))
 
 
-def _several_held(sig: _Signal, res: CandidateFit, R: float, outside_bad: float) -> bool:
+def _several_held(sig: Signal, res: CandidateFit, R: float, outside_bad: float) -> bool:
     """A fit that came through the several-edges reading, held to a higher standard: that
     reading chose its edge among several per ray, so a round outline is more easily had by
     chance (in a ball-free scene it found a round patch of one uniform thing 3 times in 240).
@@ -262,7 +262,7 @@ def _several_held(sig: _Signal, res: CandidateFit, R: float, outside_bad: float)
                          res.silhouette_px, R, outside_bad)
 
 
-def _outline_held(sig: _Signal, fit: ConeFit, support: float, width_px: float, sil: np.ndarray,
+def _outline_held(sig: Signal, fit: ConeFit, support: float, width_px: float, sil: np.ndarray,
                   R: float, outside_bad: float, need_step: bool = False) -> bool:
     """The standard of :func:`_several_held` on a fit's parts: its share of the outline, its
     edges' median width (px), its outline (K,2 px) and that outline's outside mismatch. With
@@ -291,7 +291,7 @@ def _outline_held(sig: _Signal, fit: ConeFit, support: float, width_px: float, s
     return (arcs if need_step else max(arcs, _inside_colour_agreement(sig, sil, R))) >= SEVERAL_MIN_INSIDE_AGREEMENT
 
 
-def _first_pass(cam, sig: _Signal, cand: Candidate, R: float, band, a_range_rad, rng) -> list[ConeFit] | str:
+def _first_pass(cam, sig: Signal, cand: Candidate, R: float, band, a_range_rad, rng) -> list[ConeFit] | str:
     """Pass 1: rays from the coarse centre, outermost strong edge (or, without a background,
     the strongest colour edge when that is rounder). The starts for pass 2, in the order to
     try them (more than one only with a rescued start, :data:`RESCUE_READINGS`), or why
@@ -363,7 +363,7 @@ def _rescued(fit1: ConeFit | None) -> bool:
     return fit1 is not None and fit1.reading in RESCUE_READINGS
 
 
-def _pass1_arc(cam, sig: _Signal, readings, seg_in: np.ndarray, R: float) -> ConeFit | None:
+def _pass1_arc(cam, sig: Signal, readings, seg_in: np.ndarray, R: float) -> ConeFit | None:
     """The outermost or the strongest reading's fit, when too few rays are on it to be usable
     but it is a clean partial arc (:func:`_arc_held`); before the several reading (a tight
     arc of single edges is a firmer start than a circle picked among several per ray)."""
@@ -375,7 +375,7 @@ def _pass1_arc(cam, sig: _Signal, readings, seg_in: np.ndarray, R: float) -> Con
     return best
 
 
-def _arc_held(cam, sig: _Signal, fit: ConeFit, seg_in: np.ndarray, R: float) -> bool:
+def _arc_held(cam, sig: Signal, fit: ConeFit, seg_in: np.ndarray, R: float) -> bool:
     """A partial pass-1 arc worth growing (see ARC_MIN_SHARE): enough rays, tight, one surface
     inside, and a prediction of the rest of the outline good to within pass 2's band."""
     if fit.inliers.sum() < max(12, ARC_MIN_SHARE * seg_in.sum()) \
@@ -399,7 +399,7 @@ def _arc_held(cam, sig: _Signal, fit: ConeFit, seg_in: np.ndarray, R: float) -> 
     return _within(hues) >= SEVERAL_MIN_INSIDE_AGREEMENT * len(hues)
 
 
-def _pass1_smoothed(cam, sig: _Signal, geo, a_range_rad, R: float) -> ConeFit | None:
+def _pass1_smoothed(cam, sig: Signal, geo, a_range_rad, R: float) -> ConeFit | None:
     """Pass 1 on profiles smoothed along the rays by BLUR_SCALES_PX (as pass 2's smoothed
     reading): a motion-smeared outline is a ramp whose outermost and strongest raw gradient
     peaks are the sharp texture seen through it, scattered over its width; the smoothed
@@ -451,7 +451,7 @@ def _lopsided_px2(fit: ConeFit, sil_f: np.ndarray, centre: np.ndarray, ok2: np.n
     return lopsided_floor_px2(fit.residuals_px[fit.inliers], th, float(fit.sigma_px), corr)
 
 
-def _fitted(cam, sig: _Signal, p2, R: float, sphere_radius_m: float) -> tuple[CandidateFit, float]:
+def _fitted(cam, sig: Signal, p2, R: float, sphere_radius_m: float) -> tuple[CandidateFit, float]:
     """The pass-2 fit as a candidate fit (centre, covariance, outline, support, score,
     contrast, range; extras), not yet judged; and the outline's outside mismatch."""
     fit, ok2, s2, k2, widths = p2
@@ -589,7 +589,7 @@ def _pass2(cam, sig, fit1: ConeFit, R: float, a_range_rad, rng):
     return best
 
 
-def _pass2_smear(cam, sig: _Signal, fit1: ConeFit, R: float, a_range_rad, geo, half: float):
+def _pass2_smear(cam, sig: Signal, fit1: ConeFit, R: float, a_range_rad, geo, half: float):
     """Pass 2 read as a motion smear (:mod:`calib_core.detect.image.smear`): each normal's edge
     is the middle of the ramp its profile matches best, at the width the smear measured around
     the outline predicts there; None unless that smear is real (its anisotropy stands out from
@@ -628,7 +628,7 @@ def _pass2_smear(cam, sig: _Signal, fit1: ConeFit, R: float, a_range_rad, geo, h
     return fit, ok2, s2, k2, w_k[keep]
 
 
-def _smear_held(cam, sig: _Signal, p2, R: float) -> bool:
+def _smear_held(cam, sig: Signal, p2, R: float) -> bool:
     """A smear reading's fit held like the other outlines searched for (:func:`_outline_held`:
     the tight refit's standard for its edge width, the surroundings just outside it, one hue
     inside per long arc with a colour step across the outline on each): it is searched for among
@@ -648,7 +648,7 @@ def _smear_held(cam, sig: _Signal, p2, R: float) -> bool:
 PASS2_SEVERAL_HALF_FRAC = 0.15
 
 
-def _pass2_several(cam, sig: _Signal, fit1: ConeFit, R: float, a_range_rad, geo, half: float):
+def _pass2_several(cam, sig: Signal, fit1: ConeFit, R: float, a_range_rad, geo, half: float):
     """Pass 2 read from the few strongest edges of every normal in a wider band, the outline
     being the cone most of them agree on, then one edge per normal (the nearest to it): where
     pass 1 is a few px off on one side and a strong edge just inside the ball, nearly parallel
@@ -688,7 +688,7 @@ def _pass2_several(cam, sig: _Signal, fit1: ConeFit, R: float, a_range_rad, geo,
     return fit, ok2, s2, k2, edge_widths(t2, g2, one)[ok2]
 
 
-def _searched_held(cam, sig: _Signal, p2, R: float) -> bool:
+def _searched_held(cam, sig: Signal, p2, R: float) -> bool:
     """A pass-2 outline searched for among several edges per normal, held like the several
     reading of pass 1 (:func:`_outline_held`: the tight refit's standard, the outside looks
     like the surroundings, one hue inside per long arc with a colour step across the outline
@@ -819,7 +819,7 @@ SEVERAL_HYPOTHESES = 512
 SEVERAL_BAND = (-0.65, 0.8)
 
 
-def _pass1_several(cam, sig: _Signal, pts, dirs, step, R, seg_in, a_range_rad) -> ConeFit | None:
+def _pass1_several(cam, sig: Signal, pts, dirs, step, R, seg_in, a_range_rad) -> ConeFit | None:
     """Pass-1 cone fit to the few strongest colour edges of every ray, then to one edge per ray
     (the one nearest to that cone): where the sphere's outline is neither the outermost nor
     the strongest edge (a dark ball before a dark backrest whose own edge is stronger and
@@ -866,14 +866,14 @@ SEVERAL_MIN_ARC_SHARE = 0.05
 HUE_STEP_LAG = 2
 
 
-def _inside_hues(sig: _Signal, sil: np.ndarray, R: float) -> np.ndarray:
+def _inside_hues(sig: Signal, sil: np.ndarray, R: float) -> np.ndarray:
     """(K,3) unit RGB directions just inside the outline (shading scales a colour, does not turn it)."""
     c_in, _ = _colours_across(sig, sil, R)
     c_in = c_in + 1.0
     return c_in / np.linalg.norm(c_in, axis=1, keepdims=True)
 
 
-def _colours_across(sig: _Signal, sil: np.ndarray, R: float) -> tuple[np.ndarray, np.ndarray]:
+def _colours_across(sig: Signal, sil: np.ndarray, R: float) -> tuple[np.ndarray, np.ndarray]:
     """(K,3) mean colours just inside and just outside the outline (3 samples each, a gap of
     max(3 px, 4 % of the radius) from it: the edge's own blur left out)."""
     gap = max(3.0, 0.04 * R)
@@ -890,7 +890,7 @@ def _within(d: np.ndarray) -> int:
     return int(np.sum(np.arccos(np.clip(d @ med, -1.0, 1.0)) < HUE_TOLERANCE_RAD))
 
 
-def _inside_colour_agreement(sig: _Signal, sil: np.ndarray, R: float) -> float:
+def _inside_colour_agreement(sig: Signal, sil: np.ndarray, R: float) -> float:
     """Share of the outline whose colour just inside points within HUE_TOLERANCE_RAD of the
     median inside colour."""
     d = _inside_hues(sig, sil, R)
@@ -944,7 +944,7 @@ def _step_lag(sil: np.ndarray, R: float) -> int:
     return max(1, int(round(2.0 * (max(3.0, 0.04 * R) + 1.0) / max(spacing, 1e-6))))
 
 
-def _inside_colour_arcs(sig: _Signal, sil: np.ndarray, R: float) -> float:
+def _inside_colour_arcs(sig: Signal, sil: np.ndarray, R: float) -> float:
     """Share of the outline in long arcs of one hue each: a painted ball (beach-ball gores,
     panels) changes hue only where a panel's boundary meets the outline, a few times around it;
     a circle run through texture or several objects changes it often. Arcs (:func:`_hue_arcs`)
@@ -959,7 +959,7 @@ def _inside_colour_arcs(sig: _Signal, sil: np.ndarray, R: float) -> float:
     return good / len(d)
 
 
-def _outside_mismatch(sig: _Signal, sil: np.ndarray, nrm: np.ndarray, R: float) -> float:
+def _outside_mismatch(sig: Signal, sil: np.ndarray, nrm: np.ndarray, R: float) -> float:
     """Fraction of the outline where the band just outside does not look like the surroundings.
 
     Just outside a true silhouette the signal is background (difference ~ noise, or the local

@@ -44,7 +44,7 @@ from calib_core.detect.image.apparent_range import cone_range_sigma_m, outline_r
 from calib_core.detect.image.edges import edge_widths, gradient_magnitude, outward_normals
 from calib_core.detect.image.limb import lopsided_floor_px2
 from calib_core.detect.image.fit import (BLUR_MAX_RADIUS_FRACTION, BLUR_SCALES_PX, CORR_LENGTH_PX, EDGE_NOISE_FACTOR,
-                                         EDGE_SPACING_PX, SMALL_RADIUS_PX, SMOOTH_SIGMA_PX, _Signal, centre_floor_px2,
+                                         EDGE_SPACING_PX, SMALL_RADIUS_PX, SMOOTH_SIGMA_PX, Signal, centre_floor_px2,
                                          clean_rms_px)
 from calib_core.detect.reasons import OUTLINE_SEEN_KEY, RANGE_PRIOR_KEY
 from calib_core.detect.types import ImageDetection
@@ -71,7 +71,7 @@ def predicted_cone(cam: CameraModel, uv_px, radius_px: float) -> tuple[np.ndarra
     return w / np.linalg.norm(w), float(np.arcsin(min(radius_px / cam.fx, 0.99)))
 
 
-def edge_points(cam: CameraModel, sig: _Signal, w: np.ndarray, a: float, band_px: float, smooth_px: float = 0.0):
+def edge_points(cam: CameraModel, sig: Signal, w: np.ndarray, a: float, band_px: float, smooth_px: float = 0.0):
     """All gradient peaks above the noise along the normals of the predicted outline, on profiles
     smoothed along the normals by ``smooth_px`` (Gaussian sigma; 0: as sampled): (points (N,2)
     raw px, normal index (N,), number of normals K, gradient strengths (N,), edge widths (N,):
@@ -101,7 +101,7 @@ def edge_points(cam: CameraModel, sig: _Signal, w: np.ndarray, a: float, band_px
     return sil[ki] + tt[:, None] * nrm[ki], ki, int(inside.sum()), g1, widths
 
 
-def ramp_points(cam: CameraModel, sig: _Signal, w: np.ndarray, a: float, band_px: float):
+def ramp_points(cam: CameraModel, sig: Signal, w: np.ndarray, a: float, band_px: float):
     """One edge per normal of the predicted outline, read as a motion smear's ramp
     (:func:`calib_core.detect.image.smear.read`): the same return as :func:`edge_points` (the
     widths being the smear model's), and the measured :class:`~calib_core.detect.image.smear.Smear`."""
@@ -226,7 +226,7 @@ class _Reading:
     lopsided_px2: float = 0.0  # the lopsided limb's floor (image.limb), from the fit's residuals
 
 
-def _read(cam, sig: _Signal, w0, a0: float, band: float, max_shift_q: float, seed: int,
+def _read(cam, sig: Signal, w0, a0: float, band: float, max_shift_q: float, seed: int,
           smooth_px: float, ramps: bool = False) -> _Reading | None:
     """Edges along the predicted outline's normals (smoothed by ``smooth_px``; with ``ramps``
     one per normal, read as a motion smear's ramps, and only when that smear is real), the
@@ -261,7 +261,7 @@ def _read(cam, sig: _Signal, w0, a0: float, band: float, max_shift_q: float, see
     return _Reading(fit, float(fit.inliers.sum()) / max(k, 1), k, q, normal_of, (e1, e2), width, smooth_px, sm, limb)
 
 
-def _smoothed(cam, sig: _Signal, w0, a0: float, band: float, max_shift_q: float, seed: int, R: float,
+def _smoothed(cam, sig: Signal, w0, a0: float, band: float, max_shift_q: float, seed: int, R: float,
               raw: _Reading) -> _Reading:
     """The reading of a blurred outline at the smear's middle, or ``raw`` for a sharp one.
 
@@ -288,7 +288,7 @@ def _smoothed(cam, sig: _Signal, w0, a0: float, band: float, max_shift_q: float,
     return raw if len(widths) == 1 else replace(best, edge_width_px=float(np.nanmax(widths)))
 
 
-def _ramped(cam, sig: _Signal, w0, a0: float, band: float, max_shift_q: float, seed: int, R: float,
+def _ramped(cam, sig: Signal, w0, a0: float, band: float, max_shift_q: float, seed: int, R: float,
             peaks: _Reading) -> _Reading:
     """A motion smear read around the outline (smear.py), when it is real and its ramps lie on
     MIN_SUPPORT of the outline, round: its edge width (the smear model's median) is the floor's
@@ -321,7 +321,7 @@ def detect_at_prediction(image: np.ndarray, cam: CameraModel, sphere_radius_m: f
            min(H, int(uv_px[1]) + m + 1))
     if box[2] - box[0] < 8 or box[3] - box[1] < 8:
         return _not_found(nothing)
-    sig = _Signal(image, None if background is None else prepare_background(background).image, box)
+    sig = Signal(image, None if background is None else prepare_background(background).image, box)
     look = (cam, sig, w0, a0, band, shift * cam.fx * np.tan(a0) / R, seed)
     reading = _read(*look, 0.0)
     if reading is None:
