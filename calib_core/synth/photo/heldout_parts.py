@@ -26,7 +26,7 @@ import numpy as np
 from calib_core.geometry import transform_points
 from calib_core.synth.camera_render import RenderOptions, camera_rays
 from calib_core.synth.occlusion import occluded_fraction
-from calib_core.synth.rig import silhouette_uv
+from calib_core.synth.rig import look_at_pose, silhouette_uv
 from calib_core.synth.scene import Capsule, Group, Material, Scene, Sphere
 
 
@@ -129,4 +129,15 @@ def eye_of(T_wc) -> np.ndarray:
 
 def camera_forward(T_wc) -> np.ndarray:
     return np.asarray(T_wc)[:3, 2]
+
+
+def pose_ahead(rng, T_wc, pitch_deg: tuple) -> np.ndarray:
+    """A camera at the rig's eye looking 3 m ahead along the rig's heading, pitched up by a
+    uniform draw in ``pitch_deg`` (lo, hi) degrees (negative: down)."""
+    eye = eye_of(T_wc)
+    fwd = camera_forward(T_wc)
+    yaw = np.arctan2(fwd[1], fwd[0])
+    pitch = np.deg2rad(rng.uniform(*pitch_deg))
+    ahead = np.array([np.cos(yaw) * np.cos(pitch), np.sin(yaw) * np.cos(pitch), np.sin(pitch)])
+    return look_at_pose(rng, eye, eye + 3.0 * ahead)
 

@@ -49,7 +49,7 @@ from calib_core.synth.photo.cases import draw_photo, metered
 from calib_core.synth.photo.effects import BallLook
 from calib_core.synth.photo.rov_parts import environment, vehicle_parts, wide_lens
 from calib_core.synth.photo.water import marine_snow
-from calib_core.synth.rig import look_at_pose, silhouette_uv
+from calib_core.synth.rig import silhouette_uv
 from calib_core.synth.scene import Cylinder, Material, Scene, Sphere
 
 # (albedo, glossy, share): orange / yellow trawl floats, white and black polystyrene, a grey gym ball
@@ -66,14 +66,6 @@ def _frame(rng, scale: float) -> tuple[str, int, int]:
     s = scale / 0.5
     return kind, max(64, round(720 * s)), max(36, round((576 if kind == "pal" else 480) * s))
 
-
-def _pose(rng, T_wc):
-    eye = hp.eye_of(T_wc)
-    fwd = hp.camera_forward(T_wc)
-    yaw = np.arctan2(fwd[1], fwd[0])
-    pitch = np.deg2rad(rng.uniform(-30, 5))
-    ahead = np.array([np.cos(yaw) * np.cos(pitch), np.sin(yaw) * np.cos(pitch), np.sin(pitch)])
-    return look_at_pose(rng, eye, eye + 3.0 * ahead)
 
 
 def _dome(rng, cam):
@@ -209,7 +201,7 @@ def rov(rng, rig, T_wc, scale: float, with_ball: bool, opts: RenderOptions):
     """(image uint8, camera, T_world_cam, ball centre (world), radius m, label) of one frame."""
     kind, W, H = _frame(rng, scale)
     cam = wide_lens(rng, W, H)
-    T_wc = _pose(rng, T_wc)
+    T_wc = hp.pose_ahead(rng, T_wc, (-30, 5))
     dome = _dome(rng, cam)
     static, parts, ball, look, water, c, radius, bits = _scene(rng, cam, T_wc, scale, dome)
     photo = replace(draw_photo(rng, c, radius, hp.eye_of(T_wc), look, scale),

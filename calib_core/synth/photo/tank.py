@@ -35,21 +35,11 @@ from calib_core.synth.photo import heldout_parts as hp
 from calib_core.synth.photo.cases import draw_photo, metered
 from calib_core.synth.photo.effects import BallLook
 from calib_core.synth.photo.mirrors import Mirror, composite_mirror
-from calib_core.synth.rig import look_at_pose
 from calib_core.synth.scene import Cylinder, Material, Rect, Scene, Sphere
 
 FLOATS = ((0.95, 0.40, 0.06), (0.88, 0.88, 0.86), (0.92, 0.80, 0.10), (0.80, 0.12, 0.10), (0.06, 0.06, 0.07))
 TILES = ((0.75, 0.85, 0.90), (0.88, 0.88, 0.86), (0.45, 0.65, 0.80))
 
-
-def _pose(rng, T_wc):
-    """A camera at the rig's eye looking ahead (the rig's heading) and up by -5..35 deg."""
-    eye = hp.eye_of(T_wc)
-    fwd = hp.camera_forward(T_wc)
-    yaw = np.arctan2(fwd[1], fwd[0])
-    pitch = np.deg2rad(rng.uniform(-5, 35))
-    ahead = np.array([np.cos(yaw) * np.cos(pitch), np.sin(yaw) * np.cos(pitch), np.sin(pitch)])
-    return look_at_pose(rng, eye, eye + 3.0 * ahead)
 
 
 def _tile_mat(rng) -> Material:
@@ -140,7 +130,7 @@ def _mirrors(rng, lo, hi, surface_z, glass_side) -> list:
 
 
 def tank(rng, rig, cam, T_wc, scale, with_ball, opts):
-    T_wc = _pose(rng, T_wc)
+    T_wc = hp.pose_ahead(rng, T_wc, (-5, 35))
     radius = float(rng.uniform(0.05, 0.2))
     holder = str(rng.choice(["rope", "pole", "tether", "floor"]))
     try:
