@@ -1,7 +1,7 @@
 """Speed of ``sonarcal calibrate``: right after ``detect`` (detections reused by fingerprint),
 fresh (detection included, in parallel processes), and the workbench's Solve (in process).
 
-    .venv/bin/python benchmarks/bench_calibrate_speed.py [--cache DIR] [--reps 3]
+    .venv/bin/python benchmarks/bench_calibrate_speed.py [--cache DIR] [--reps 3] [--other-code DIR]
 
 A. The synthetic "canal" preset (two 1920x1080 cameras, 9 captures, seed 1), generated once
    (kept in --cache). ``sonarcal detect`` is run, then ``sonarcal calibrate`` is timed as a
@@ -14,7 +14,12 @@ B. 100 captures, two cameras: detections.yaml holds ``auto`` entries written the
    (with matching fingerprints only their time stamps and sizes are looked at). ``sonarcal
    calibrate`` is timed as a subprocess.
 Each subprocess also reports whether open3d got imported on the way. The machine is shared:
-the load average is printed with every table.
+the load average is printed with every table, and CPU seconds beside every wall time. The fresh
+calibrate is also run in process, where the calling thread's CPU seconds are told apart from the
+process's (the second thread decodes images, :mod:`calib_core.prefetch`). ``--other-code DIR``
+runs the fresh ``sonarcal calibrate`` also with another checkout's code (e.g. main's, from
+``git worktree add`` or ``git archive``), interleaved with this one's: before and after on the
+same machine state.
 """
 
 from __future__ import annotations
@@ -42,11 +47,12 @@ PROBE = ("import sys, runpy; sys.argv = ['sonarcal'] + sys.argv[1:]; "
          "print('OPEN3D_IMPORTED=' + str('open3d' in sys.modules), file=sys.stderr); sys.exit(rc)")
 
 
-def cli(*args, **extra_env) -> tuple[float, bool, float]:
-    """(wall s, open3d imported, CPU s of the process and its children: user + sys)."""
+def cli(*args, code: Path = ROOT, **extra_env) -> tuple[float, bool, float]:
+    """(wall s, open3d imported, CPU s of the process and its children: user + sys), running the
+    code in ``code``."""
     import resource
 
-    env = dict(os.environ, PYTHONPATH=str(ROOT), **extra_env)
+    env = dict(os.environ, PYTHONPATH=str(code), **extra_env)
     r0 = resource.getrusage(resource.RUSAGE_CHILDREN)
     t0 = time.perf_counter()
     p = subprocess.run([sys.executable, "-c", PROBE, *args], capture_output=True, text=True, env=env)
@@ -58,7 +64,23 @@ def cli(*args, **extra_env) -> tuple[float, bool, float]:
     return dt, "OPEN3D_IMPORTED=True" in p.stderr, cpu
 
 
-def part_a(cache: Path, reps: int):
+def fresh_in_process(root: Path, reps: int) -> list[tuple[float, float, float]]:
+    """[(wall s, process CPU s, calling thread's CPU s)] of a fresh calibrate_session in process."""
+    from calib_core.detections import load_detections
+    from calib_core.session import load_session
+    from calib_core.solve.calibrate import calibrate_session
+
+    out = []
+    for _ in range(reps):
+        (root / "detections.yaml").unlink(missing_ok=True)
+        s = load_session(root)
+        t0, c0, h0 = time.perf_counter(), time.process_time(), time.thread_time()
+        calibrate_session(s, load_detections(s), {"detect": True})
+        out.append((time.perf_counter() - t0, time.process_time() - c0, time.thread_time() - h0))
+    return out
+
+
+def part_a(cache: Path, reps: int, other: Path | None = None):
     from calib_core.detections import load_detections
     from calib_core.session import load_session
     from calib_core.solve.calibrate import calibrate_session
@@ -81,13 +103,17 @@ def part_a(cache: Path, reps: int):
             t0 = time.perf_counter()
             calibrate_session(s, load_detections(s))
             solve.append(time.perf_counter() - t0)
-        fresh, pooled = [], []
+        fresh, pooled, others = [], [], []
         for _ in range(reps):  # interleaved: the machine's other jobs hit both alike
             (root / "detections.yaml").unlink(missing_ok=True)
             fresh.append(cli("calibrate", str(root), "--quiet"))
             (root / "detections.yaml").unlink(missing_ok=True)
             pooled.append(cli("calibrate", str(root), "--quiet", SONARCAL_WORKERS="2"))
-    return t_det, after, fresh, solve, pooled
+            if other is not None:
+                (root / "detections.yaml").unlink(missing_ok=True)
+                others.append(cli("calibrate", str(root), "--quiet", code=other))
+        in_process = fresh_in_process(root, reps)
+    return t_det, after, fresh, solve, pooled, others, in_process
 
 
 def synthetic_session(root: Path, n: int):
@@ -131,6 +157,8 @@ def main(argv=None):
     ap.add_argument("--cache", default=str(Path(tempfile.gettempdir()) / "sonarcal_speed_cache"))
     ap.add_argument("--reps", type=int, default=3)
     ap.add_argument("--skip-a", action="store_true")
+    ap.add_argument("--other-code", type=Path, default=None,
+                    help="another checkout whose fresh calibrate is timed too, interleaved (before/after)")
     a = ap.parse_args(argv)
     cache = Path(a.cache)
     cache.mkdir(parents=True, exist_ok=True)
@@ -147,7 +175,7 @@ def main(argv=None):
     checks.append(("calibrate right after detect, 100 captures, <= 3 s (subprocess, start-up included)",
                    f"{t100:.2f} s", t100 <= 3.0))
     if not a.skip_a:
-        t_det, after, fresh, solve, pooled = part_a(cache, a.reps)
+        t_det, after, fresh, solve, pooled, others, in_process = part_a(cache, a.reps, a.other_code)
         ta = statistics.median(r[0] for r in after)
         tf = statistics.median(r[0] for r in fresh)
         ts = statistics.median(solve)
@@ -159,6 +187,12 @@ def main(argv=None):
               f"CPU s (in process below 40 tasks: all of it) {', '.join(f'{r[2]:.2f}' for r in fresh)})")
         print(f"  the same in 2 processes (SONARCAL_WORKERS=2): {statistics.median(r[0] for r in pooled):.2f} s  "
               f"(runs {', '.join(f'{r[0]:.2f}' for r in pooled)}; CPU s of the main process {', '.join(f'{r[2]:.2f}' for r in pooled)})")
+        if others:
+            print(f"  the same with {a.other_code}: {statistics.median(r[0] for r in others):.2f} s  "
+                  f"(runs {', '.join(f'{r[0]:.2f}' for r in others)}; CPU s {', '.join(f'{r[2]:.2f}' for r in others)})")
+        print(f"  calibrate_session in process, fresh:          {statistics.median(r[0] for r in in_process):.2f} s  "
+              f"(CPU s of the process {', '.join(f'{r[1]:.2f}' for r in in_process)}; "
+              f"of the calling thread {', '.join(f'{r[2]:.2f}' for r in in_process)})")
         print(f"  calibrate_session in process, reused (Solve): {ts:.2f} s  (runs {', '.join(f'{v:.2f}' for v in solve)})")
         checks += [("calibrate right after detect, 9 captures, <= 1.0 s", f"{ta:.2f} s", ta <= 1.0),
                    ("fresh calibrate, 9 captures 1080p, <= 3 s", f"{tf:.2f} s", tf <= 3.0),
