@@ -55,7 +55,8 @@ def cli(*args, code: Path = ROOT, **extra_env) -> tuple[float, bool, float]:
     env = dict(os.environ, PYTHONPATH=str(code), **extra_env)
     r0 = resource.getrusage(resource.RUSAGE_CHILDREN)
     t0 = time.perf_counter()
-    p = subprocess.run([sys.executable, "-c", PROBE, *args], capture_output=True, text=True, env=env)
+    # cwd: "python -c" puts the working directory first on sys.path, before PYTHONPATH
+    p = subprocess.run([sys.executable, "-c", PROBE, *args], capture_output=True, text=True, env=env, cwd=str(code))
     dt = time.perf_counter() - t0
     r1 = resource.getrusage(resource.RUSAGE_CHILDREN)
     if p.returncode != 0:
@@ -116,6 +117,32 @@ def part_a(cache: Path, reps: int, other: Path | None = None):
     return t_det, after, fresh, solve, pooled, others, in_process
 
 
+def fresh_pairs(cache: Path, n: int, other: Path | None) -> None:
+    """The fresh calibrate of canal-1 with this code and ``other``'s, alternately ``n`` times each
+    (a subprocess each): per run wall and CPU s, then the medians and minima."""
+    from benchmarks._table import print_table
+    from calib_core.synth.generate import generate_session
+
+    src = cache / "canal-1"
+    if not (src / "session.yaml").exists():
+        generate_session(src, "canal", 1)
+    codes = [("this", ROOT)] + ([(str(other), other)] if other else [])
+    runs: dict = {name: [] for name, _ in codes}
+    with tempfile.TemporaryDirectory() as tmp:
+        root = Path(tmp) / "s"
+        shutil.copytree(src, root)
+        for _ in range(n):
+            for name, code in codes:
+                (root / "detections.yaml").unlink(missing_ok=True)
+                wall, _, cpu = cli("calibrate", str(root), "--quiet", code=code)
+                runs[name].append((wall, cpu, os.getloadavg()[0]))
+                print(f"  {name}: wall {wall:.2f} s, CPU {cpu:.2f} s, load {runs[name][-1][2]:.1f}", flush=True)
+    rows = [[name, " ".join(f"{c:.2f}" for _, c, _ in r), f"{statistics.median(c for _, c, _ in r):.2f}",
+             f"{min(c for _, c, _ in r):.2f}", f"{statistics.median(w for w, _, _ in r):.2f}",
+             f"{min(w for w, _, _ in r):.2f}"] for name, r in runs.items()]
+    print_table(["code", "CPU s per run", "CPU median", "CPU min", "wall median", "wall min"], rows)
+
+
 def synthetic_session(root: Path, n: int):
     """A 2-camera session with n captures and auto entries carrying detect's fingerprints."""
     from calib_core.detections import save_detections
@@ -159,9 +186,13 @@ def main(argv=None):
     ap.add_argument("--skip-a", action="store_true")
     ap.add_argument("--other-code", type=Path, default=None,
                     help="another checkout whose fresh calibrate is timed too, interleaved (before/after)")
+    ap.add_argument("--pairs", type=int, default=0,
+                    help="only the fresh calibrate, this code and --other-code's alternately, this many times each")
     a = ap.parse_args(argv)
     cache = Path(a.cache)
     cache.mkdir(parents=True, exist_ok=True)
+    if a.pairs:
+        return fresh_pairs(cache, a.pairs, a.other_code)
     checks = []
     print(f"workers: {os.cpu_count()} cores; load average before: {os.getloadavg()}")
     with tempfile.TemporaryDirectory() as tmp:
