@@ -179,6 +179,32 @@ def synthetic_session(root: Path, n: int):
     save_detections(data.session, dets)
 
 
+def report_part_a(t_det, after, fresh, solve, pooled, others, in_process, other_code) -> list:
+    """Print part A's timings; its target checks."""
+    ta = statistics.median(r[0] for r in after)
+    tf = statistics.median(r[0] for r in fresh)
+    ts = statistics.median(solve)
+    print(f"\nA. canal preset, 2 cameras 1920x1080, 9 captures; load {os.getloadavg()}")
+    print(f"  sonarcal detect:                              {t_det:.2f} s")
+    print(f"  sonarcal calibrate right after detect:        {ta:.2f} s  (runs {', '.join(f'{r[0]:.2f}' for r in after)}; "
+          f"CPU s {', '.join(f'{r[2]:.2f}' for r in after)}; open3d imported: {after[0][1]})")
+    print(f"  sonarcal calibrate fresh (detection included): {tf:.2f} s  (runs {', '.join(f'{r[0]:.2f}' for r in fresh)}; "
+          f"CPU s (in process below 40 tasks: all of it) {', '.join(f'{r[2]:.2f}' for r in fresh)})")
+    print(f"  the same in 2 processes (SONARCAL_WORKERS=2): {statistics.median(r[0] for r in pooled):.2f} s  "
+          f"(runs {', '.join(f'{r[0]:.2f}' for r in pooled)}; CPU s of the main process {', '.join(f'{r[2]:.2f}' for r in pooled)})")
+    if others:
+        print(f"  the same with {other_code}: {statistics.median(r[0] for r in others):.2f} s  "
+              f"(runs {', '.join(f'{r[0]:.2f}' for r in others)}; CPU s {', '.join(f'{r[2]:.2f}' for r in others)})")
+    print(f"  calibrate_session in process, fresh:          {statistics.median(r[0] for r in in_process):.2f} s  "
+          f"(CPU s of the process {', '.join(f'{r[1]:.2f}' for r in in_process)}; "
+          f"of the calling thread {', '.join(f'{r[2]:.2f}' for r in in_process)})")
+    print(f"  calibrate_session in process, reused (Solve): {ts:.2f} s  (runs {', '.join(f'{v:.2f}' for v in solve)})")
+    return [("calibrate right after detect, 9 captures, <= 1.0 s", f"{ta:.2f} s", ta <= 1.0),
+            ("fresh calibrate, 9 captures 1080p, <= 3 s", f"{tf:.2f} s", tf <= 3.0),
+            ("workbench Solve after the first detection (calibrate_session, reused) <= 1.5 s", f"{ts:.2f} s",
+             ts <= 1.5)]
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--cache", default=str(Path(tempfile.gettempdir()) / "sonarcal_speed_cache"))
@@ -206,29 +232,7 @@ def main(argv=None):
     checks.append(("calibrate right after detect, 100 captures, <= 3 s (subprocess, start-up included)",
                    f"{t100:.2f} s", t100 <= 3.0))
     if not a.skip_a:
-        t_det, after, fresh, solve, pooled, others, in_process = part_a(cache, a.reps, a.other_code)
-        ta = statistics.median(r[0] for r in after)
-        tf = statistics.median(r[0] for r in fresh)
-        ts = statistics.median(solve)
-        print(f"\nA. canal preset, 2 cameras 1920x1080, 9 captures; load {os.getloadavg()}")
-        print(f"  sonarcal detect:                              {t_det:.2f} s")
-        print(f"  sonarcal calibrate right after detect:        {ta:.2f} s  (runs {', '.join(f'{r[0]:.2f}' for r in after)}; "
-              f"CPU s {', '.join(f'{r[2]:.2f}' for r in after)}; open3d imported: {after[0][1]})")
-        print(f"  sonarcal calibrate fresh (detection included): {tf:.2f} s  (runs {', '.join(f'{r[0]:.2f}' for r in fresh)}; "
-              f"CPU s (in process below 40 tasks: all of it) {', '.join(f'{r[2]:.2f}' for r in fresh)})")
-        print(f"  the same in 2 processes (SONARCAL_WORKERS=2): {statistics.median(r[0] for r in pooled):.2f} s  "
-              f"(runs {', '.join(f'{r[0]:.2f}' for r in pooled)}; CPU s of the main process {', '.join(f'{r[2]:.2f}' for r in pooled)})")
-        if others:
-            print(f"  the same with {a.other_code}: {statistics.median(r[0] for r in others):.2f} s  "
-                  f"(runs {', '.join(f'{r[0]:.2f}' for r in others)}; CPU s {', '.join(f'{r[2]:.2f}' for r in others)})")
-        print(f"  calibrate_session in process, fresh:          {statistics.median(r[0] for r in in_process):.2f} s  "
-              f"(CPU s of the process {', '.join(f'{r[1]:.2f}' for r in in_process)}; "
-              f"of the calling thread {', '.join(f'{r[2]:.2f}' for r in in_process)})")
-        print(f"  calibrate_session in process, reused (Solve): {ts:.2f} s  (runs {', '.join(f'{v:.2f}' for v in solve)})")
-        checks += [("calibrate right after detect, 9 captures, <= 1.0 s", f"{ta:.2f} s", ta <= 1.0),
-                   ("fresh calibrate, 9 captures 1080p, <= 3 s", f"{tf:.2f} s", tf <= 3.0),
-                   ("workbench Solve after the first detection (calibrate_session, reused) <= 1.5 s", f"{ts:.2f} s",
-                    ts <= 1.5)]
+        checks += report_part_a(*part_a(cache, a.reps, a.other_code), a.other_code)
     print(f"load average after: {os.getloadavg()}")
     print_targets(checks)
 
