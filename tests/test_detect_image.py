@@ -209,3 +209,15 @@ def test_cone_from_conic_matches_the_geometry_note():
     # the ellipse centre is not the projected centre
     xy = v[:, :2] / v[:, 2:]
     assert np.linalg.norm(0.5 * (xy.max(axis=0) + xy.min(axis=0)) - w[:2] / w[2]) > 1e-4
+
+
+def test_background_median_of_few_frames_is_numpys_median():
+    """The median of a few 8-bit frames by sorting them (background_model's fast path) is the value
+    np.median gives, odd and even counts (the mean of the two middle values), bit for bit."""
+    from calib_core.detect.image.detect import background_model
+
+    rng = np.random.default_rng(3)
+    for n in range(2, 11):
+        frames = [rng.integers(0, 256, (7, 5, 3), dtype=np.uint8) for _ in range(n)]
+        frames[0][0, 0] = frames[1][0, 0]  # ties
+        assert np.array_equal(background_model(frames), np.median(np.stack(frames), axis=0).astype(np.float32))

@@ -56,7 +56,7 @@ def test_calibrate_reuses_matching_entries_and_redetects_only_changed_ones(small
     root, session, dets = small
     ran = []
     real = entries.detect_one
-    monkeypatch.setattr(entries, "detect_one", lambda data, cid, sensor: ran.append((cid, sensor)) or real(data, cid, sensor))
+    monkeypatch.setattr(entries, "detect_one", lambda data, cid, sensor, **kw: ran.append((cid, sensor)) or real(data, cid, sensor, **kw))
     again = detect_session(SessionData(session), load_detections(session), workers=1)
     assert ran == [] and again == dets
     cap = session.captures[1]

@@ -84,17 +84,26 @@ def as_data(session_or_data) -> SessionData:
     return session_or_data if isinstance(session_or_data, SessionData) else SessionData(session_or_data)
 
 
-def detect_image_entry(data: SessionData | Session, capture_id: str, cam: str,
-                       hint_uv_px=None, hint_radius_px=None) -> dict:
-    """Run the image detector on one capture's image; return a detections.yaml entry (auto)."""
-    from calib_core.detect.image.detect import detect_sphere_in_image
+def load_capture_image(data: SessionData, capture_id: str, cam: str):
+    """One capture's image of camera ``cam`` (RGB uint8), checked against its intrinsics' size."""
     from calib_core.io.images import load_image
 
-    data = as_data(data)
     path = data.session.capture(capture_id).image_paths[cam]
     model = data.camera(cam)
     image = load_image(path, (model.width_px, model.height_px))
     _check_image_size(path, image, model)
+    return image
+
+
+def detect_image_entry(data: SessionData | Session, capture_id: str, cam: str,
+                       hint_uv_px=None, hint_radius_px=None, image_rgb=None) -> dict:
+    """Run the image detector on one capture's image; return a detections.yaml entry (auto).
+    ``image_rgb``: that image as :func:`load_capture_image` gives it, when already loaded."""
+    from calib_core.detect.image.detect import detect_sphere_in_image
+
+    data = as_data(data)
+    image = load_capture_image(data, capture_id, cam) if image_rgb is None else image_rgb
+    model = data.camera(cam)
     det = detect_sphere_in_image(image, model, data.session.sphere_radius_m, background=data.background(cam),
                                  hint_uv_px=hint_uv_px, hint_radius_px=hint_radius_px)
     return det.to_entry()
@@ -179,8 +188,32 @@ def session_beam_width(data: SessionData, capture_ids: list[str], detections: di
     return estimate_session_beam_width(data, clouds, detections)
 
 
-def detect_one(data: SessionData, cid: str, sensor: str) -> dict:
-    """One automatic detection (no fingerprint): what a worker process runs."""
+def detect_one(data: SessionData, cid: str, sensor: str, image_rgb=None) -> dict:
+    """One automatic detection (no fingerprint): what a worker process runs. ``image_rgb``: an
+    image task's image, already loaded (:func:`load_capture_image`)."""
     if sensor == "sonar":
         return detect_sonar_entry(data, cid)
-    return detect_image_entry(data, cid, sensor)
+    return detect_image_entry(data, cid, sensor, image_rgb=image_rgb)
+
+
+def prefetch_jobs(data: SessionData, todo: list[tuple[str, str]]) -> list:
+    """[(key, function)] loading what ``todo``'s image tasks need, in the order they need it:
+    each camera's background model (cached in ``data``) before its first image, then the image
+    (key (capture_id, camera)). A background model that fails is left for its first detection
+    to compute again and report, as it would without the prefetch."""
+    jobs, seen = [], set()
+    for cid, sensor in todo:
+        if sensor == "sonar":
+            continue
+        if sensor not in seen:
+            seen.add(sensor)
+            jobs.append((("background", sensor), lambda cam=sensor: _background_or_none(data, cam)))
+        jobs.append(((cid, sensor), lambda c=cid, cam=sensor: load_capture_image(data, c, cam)))
+    return jobs
+
+
+def _background_or_none(data: SessionData, cam: str):
+    try:
+        return data.background(cam)
+    except Exception:  # noqa: BLE001 (raised again by the detection, in its place)
+        return None

@@ -250,10 +250,15 @@ def _ransac(ids: list, X: dict, P: dict, tol: dict, iterations: int, seed: int) 
     hypotheses from 3 captures, one candidate each; ties broken by the lower summed distance."""
     rng = np.random.default_rng(seed)
     best_T, best_key = None, (-1, np.inf)
+    tried = set()  # a hypothesis drawn again gives the same T and score: it cannot win (strict >)
     for _ in range(iterations):
         pick = rng.choice(len(ids), 3, replace=False)
         sel = [ids[i] for i in pick]
         choice = [rng.integers(len(P[c])) for c in sel]
+        drawn = (*pick.tolist(), *(int(k) for k in choice))
+        if drawn in tried:
+            continue
+        tried.add(drawn)
         T = rigid_fit(np.array([X[c] for c in sel]), np.array([P[c][k] for c, k in zip(sel, choice)]))
         if T is None:
             continue

