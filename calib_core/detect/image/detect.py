@@ -31,7 +31,7 @@ import numpy as np
 from calib_core.camera import CameraModel
 from calib_core.detect.image.blur import SMALL_RADIUS_PX, blur_range_floor_m, clean_rms_px
 from calib_core.detect.image.fit import (DRAWN_LINE, MIN_EDGE_WIDTH_PX, SMOOTH_SIGMA_PX, TIGHT_MIN_SUPPORT,
-                                        TIGHT_RMS_FRACTION, CandidateFit, refine_candidate)
+                                        TIGHT_RMS_FRACTION, CandidateFit, refine_candidate, seen_mask)
 from calib_core.detect.image.overlay import drawn_in_image
 from calib_core.detect.image.closing import closed_candidates, view_of
 from calib_core.detect.image.discs import candidates_by_discs
@@ -632,7 +632,7 @@ class _Look:
         f = refine_candidate(view_of(self.img, c), self.cam, c, self.radius_m, self.a_range, None,
                              np.random.default_rng(0))
         # a line drawn over the scene (an overlay's circle) is one in the image itself, whatever the view made of it
-        if f.ok and self.bg is None and drawn_in_image(self.img, f.silhouette_px, SMOOTH_SIGMA_PX):
+        if (f.ok or f.credible) and self.bg is None and drawn_in_image(self.img, f.silhouette_px, SMOOTH_SIGMA_PX, seen_mask(f)):
             f.ok, f.credible, f.reason = False, False, DRAWN_LINE
         return f
 

@@ -91,6 +91,7 @@ class CandidateFit:
     extras: dict = field(default_factory=dict)
     credible: bool = False
     wobble: Wobble | None = None  # harmonics 2-8 of the inlier residuals (corners.py)
+    seen_idx: np.ndarray | None = None  # indices into silhouette_px where pass 2 found the outline (inliers)
 
 
 def _polar_radius(cand: Candidate, dirs: np.ndarray) -> np.ndarray:
@@ -227,7 +228,9 @@ def _grown(cam, sig: Signal, fit1: ConeFit, R: float, a_range_rad, rng, sphere_r
         return CandidateFit(False, "no round outline")
     res, outside_bad = _fitted(cam, sig, p2, R, sphere_radius_m)
     _judge(cam, res, R, outside_bad, sig.diff is not None)
-    if res.ok and sig.diff is None and _drawn_over(sig, res):
+    # (a refused outline too, when it would count: one cut by the border or partly hidden, a
+    # broken reticle's arcs, is a rival of the ball or a partial find only if it is an edge)
+    if (res.ok or res.credible) and sig.diff is None and _drawn_over(sig, res):
         res.ok, res.credible, res.reason = False, False, DRAWN_LINE
     if res.ok and fit1.reading == "several" and not _several_held(sig, res, R, outside_bad):
         res.ok, res.credible, res.reason = False, False, "no round outline"
@@ -238,12 +241,23 @@ DRAWN_LINE = "a round line drawn over the image (an overlay), not an outline"
 
 
 def _drawn_over(sig: Signal, res: CandidateFit) -> bool:
-    """The accepted outline is a thin line drawn over one surface (:mod:`.overlay`)."""
+    """The outline, where it was seen, is a thin line drawn over one surface (:mod:`.overlay`)."""
     sil = res.silhouette_px
-    inside = sig.covers(sil, max(8.0, 0.05 * _outline_radius(sil)) + 3.0)
-    if inside.sum() < 8:
+    use = sig.covers(sil, max(8.0, 0.05 * _outline_radius(sil)) + 3.0) & seen_mask(res)
+    if use.sum() < 8:
         return False
-    return is_drawn_line(sig.img, sig.origin, sil[inside], _outline_radius(sil))
+    return is_drawn_line(sig.img, sig.origin, sil, _outline_radius(sil), use)
+
+
+def seen_mask(res: CandidateFit) -> np.ndarray:
+    """(K,) bool over the fitted outline's points: where pass 2 found its edge (all without that
+    record). A line drawn in broken arcs (a reticle with gaps) is a line where it is seen."""
+    seen = np.zeros(len(res.silhouette_px), bool)
+    if res.seen_idx is None or len(res.seen_idx) < 8:
+        seen[:] = True
+    else:
+        seen[res.seen_idx] = True
+    return seen
 
 
 def _outline_radius(sil: np.ndarray) -> float:
@@ -483,7 +497,8 @@ def _fitted(cam, sig: Signal, p2, R: float, sphere_radius_m: float) -> tuple[Can
     res.extras["outside_mismatch"] = round(outside_bad, 4)
     res.extras["outline_coverage"] = round(support, 3)
     r_fit = float(np.mean(np.linalg.norm(sil_f - sil_f.mean(axis=0), axis=1)))
-    res.wobble = outline_wobble(np.flatnonzero(ok2)[fit.inliers], k2, fit.residuals_px[fit.inliers], r_fit)
+    res.seen_idx = np.flatnonzero(ok2)[fit.inliers]
+    res.wobble = outline_wobble(res.seen_idx, k2, fit.residuals_px[fit.inliers], r_fit)
     if res.wobble is not None:
         res.extras["outline_wobble"] = round(res.wobble.excess_fraction, 4)
     return res, outside_bad

@@ -31,19 +31,24 @@ LINE_MIN_SHARE = 0.6
 LINE_CORE_PX = 4.0
 
 
-def drawn_line_share(img: np.ndarray, origin_px: tuple, outline_px: np.ndarray, radius_px: float) -> float:
-    """Share of the outline's points (K,2 raw px) that lie on a thin line drawn over one
-    surface (see the module doc); ``img`` the (smoothed) colour region whose pixel (0,0) is the
-    full image's ``origin_px``."""
-    if len(outline_px) < 8:
+def drawn_line_share(img: np.ndarray, origin_px: tuple, outline_px: np.ndarray, radius_px: float,
+                     use: np.ndarray | None = None) -> float:
+    """Share of the outline's points (K,2 raw px, a closed curve) that lie on a thin line drawn
+    over one surface (see the module doc); only the points ``use`` (K, bool; all when None:
+    e.g. where the outline was seen) are counted. ``img`` the (smoothed) colour region whose
+    pixel (0,0) is the full image's ``origin_px``."""
+    use = np.ones(len(outline_px), bool) if use is None else np.asarray(use, bool)
+    if use.sum() < 8:
         return 0.0
-    nrm = outward_normals(outline_px, outline_px.mean(axis=0))
+    # (normals of the whole closed curve: a subset's gaps would bend them)
+    nrm = outward_normals(outline_px, outline_px.mean(axis=0))[use]
+    pts = outline_px[use]
     gap = max(8.0, 0.05 * radius_px)
     t_side = gap + np.arange(3.0)
     t_core = np.arange(-LINE_CORE_PX, LINE_CORE_PX + 0.01, 1.0)
-    c_in = sample_profiles(img, origin_px, outline_px, nrm, -t_side).mean(axis=1)
-    c_out = sample_profiles(img, origin_px, outline_px, nrm, t_side).mean(axis=1)
-    core = sample_profiles(img, origin_px, outline_px, nrm, t_core)
+    c_in = sample_profiles(img, origin_px, pts, nrm, -t_side).mean(axis=1)
+    c_out = sample_profiles(img, origin_px, pts, nrm, t_side).mean(axis=1)
+    core = sample_profiles(img, origin_px, pts, nrm, t_core)
     mid = 0.5 * (c_in + c_out)
     peak = np.linalg.norm(core - mid[:, None, :], axis=2).max(axis=1)
     step = np.linalg.norm(c_in - c_out, axis=1)
@@ -51,22 +56,27 @@ def drawn_line_share(img: np.ndarray, origin_px: tuple, outline_px: np.ndarray, 
     return float(on_line.mean())
 
 
-def is_drawn_line(img: np.ndarray, origin_px: tuple, outline_px: np.ndarray, radius_px: float) -> bool:
-    """True when the outline is a drawn line rather than an edge (LINE_MIN_SHARE of it)."""
-    return drawn_line_share(img, origin_px, outline_px, radius_px) >= LINE_MIN_SHARE
+def is_drawn_line(img: np.ndarray, origin_px: tuple, outline_px: np.ndarray, radius_px: float,
+                  use: np.ndarray | None = None) -> bool:
+    """True when the outline (its points ``use``) is a drawn line rather than an edge
+    (LINE_MIN_SHARE of them)."""
+    return drawn_line_share(img, origin_px, outline_px, radius_px, use) >= LINE_MIN_SHARE
 
 
-def drawn_in_image(image_rgb: np.ndarray, outline_px: np.ndarray, smooth_sigma_px: float) -> bool:
+def drawn_in_image(image_rgb: np.ndarray, outline_px: np.ndarray, smooth_sigma_px: float,
+                   use: np.ndarray | None = None) -> bool:
     """:func:`is_drawn_line` on the raw image (H,W,3) smoothed by ``smooth_sigma_px`` around the
     outline (for a fit made on another view of the image, e.g. a closed one: a line drawn over
-    the scene is in the image itself)."""
+    the scene is in the image itself); only the points ``use`` (K, bool) counted."""
     H, W = image_rgb.shape[:2]
     r = float(np.mean(np.linalg.norm(outline_px - outline_px.mean(axis=0), axis=1)))
     m = max(8.0, 0.05 * r) + 3.0 + 3.0 * smooth_sigma_px
     lo = np.maximum(np.floor(outline_px.min(axis=0) - m), 0).astype(int)
     hi = np.minimum(np.ceil(outline_px.max(axis=0) + m), [W, H]).astype(int)
     keep = ((outline_px >= lo + m - 3.0 * smooth_sigma_px) & (outline_px <= hi - 1 - m + 3.0 * smooth_sigma_px)).all(axis=1)
+    if use is not None:
+        keep &= np.asarray(use, bool)
     if keep.sum() < 8 or (hi - lo).min() < 4:
         return False
     crop = cv2.GaussianBlur(image_rgb[lo[1]:hi[1], lo[0]:hi[0]].astype(np.float32), (0, 0), smooth_sigma_px)
-    return is_drawn_line(crop, (float(lo[0]), float(lo[1])), outline_px[keep], r)
+    return is_drawn_line(crop, (float(lo[0]), float(lo[1])), outline_px, r, keep)
