@@ -187,9 +187,10 @@ def compare(img: np.ndarray, near: dict, far: dict, noise_dn: float, cam=None) -
     seen = _in_image(p_a, W, H) & _in_image(p_flip, W, H) & _in_image(p_direct, W, H)
     if seen.sum() < MIN_SEEN * len(p_a) or seen.sum() < (MIN_SAMPLES if exact else 1):
         return MirrorEvidence(0.0, 0.0, 0.0, np.inf, 0.0)
-    sigma = _blur_sigma(min(near["radius_px"], far["radius_px"]))
-    a, b_flip, b_direct = (_sample_at(img, pp[seen], sigma) for pp in (p_a, p_flip, p_direct))
+    s_a, s_b = _blur_sigma(near["radius_px"]), _blur_sigma(far["radius_px"])
+    a, b_flip, b_direct = (_sample_at(img, pp[seen], sg) for pp, sg in ((p_a, s_a), (p_flip, s_b), (p_direct, s_b)))
     # the blur before sampling lowers the noise variance by 1 / (4 pi sigma^2)
+    sigma = _blur_sigma(min(near["radius_px"], far["radius_px"]))
     noise_var = noise_dn ** 2 / (4 * np.pi * sigma ** 2)
     mean_a, mean_b = a.mean(axis=0), b_direct.mean(axis=0)
     cos = float(mean_a @ mean_b / max(np.linalg.norm(mean_a) * np.linalg.norm(mean_b), 1e-9))
