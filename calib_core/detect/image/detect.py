@@ -38,7 +38,7 @@ from calib_core.detect.image.discs import candidates_by_discs
 from calib_core.detect.image.highlight import host_candidates, is_clipped_spot
 from calib_core.detect.image.hough import hough_circle
 from calib_core.detect.image.mirror import MirrorEvidence, noise_sigma_dn
-from calib_core.detect.image.mirror import compare as mirror_compare
+from calib_core.detect.image.mirror import evidence as mirror_evidence
 from calib_core.detect.image.pattern import MIN_GROWTH, enclosing_candidates, in_a_print, is_body, lies_inside
 from calib_core.detect.image.apparent_range import cone_range_sigma_m, outline_range_floor_m
 from calib_core.detect.image.score import features, probability
@@ -276,9 +276,12 @@ class _Copy:
     evidence: MirrorEvidence
 
 
-def _mirror_input(f: CandidateFit, sphere_radius_m: float) -> dict:
+def _mirror_input(f: CandidateFit, sphere_radius_m: float, cam: CameraModel) -> dict:
+    """An accepted outline as :func:`.mirror.compare` reads it (the 3D centre: the ray through the
+    projected centre at the cone's range, m)."""
     return {"centre_px": f.centre_uv_px, "radius_px": _mean_radius(f.silhouette_px), "range_m": float(f.range_m),
-            "range_sigma_m": _range_sigma_m(f, sphere_radius_m)}
+            "range_sigma_m": _range_sigma_m(f, sphere_radius_m), "sphere_radius_m": sphere_radius_m,
+            "centre_cam_m": cam.rays(np.asarray(f.centre_uv_px, float)[None, :])[0] * float(f.range_m)}
 
 
 def _without_mirror_copies(look, good):
@@ -327,8 +330,8 @@ def _mirror_copy_of(look, far: CandidateFit, near: CandidateFit) -> _Copy | None
         return None
     if look.noise_dn is None:
         look.noise_dn = noise_sigma_dn(look.img)
-    ev = mirror_compare(look.img, _mirror_input(near, look.radius_m), _mirror_input(far, look.radius_m),
-                        look.noise_dn)
+    ev = mirror_evidence(look.img, _mirror_input(near, look.radius_m, look.cam),
+                         _mirror_input(far, look.radius_m, look.cam), look.noise_dn, look.cam)
     return _Copy(far, near, ev) if ev.is_pair() else None
 
 
