@@ -18,10 +18,10 @@ fi
 PY=${PYTHON:-python3.11}
 command -v "$PY" >/dev/null || PY=python3
 [ -x .venv/bin/python ] || "$PY" -m venv .venv
-stamp=".venv/.installed-$(cat pyproject.toml | sha1sum | cut -c1-12)"
+stamp=".venv/.installed-$(cat pyproject.toml scripts/constraints.txt | sha1sum | cut -c1-12)"
 if [ ! -f "$stamp" ]; then
   echo "installing Python packages into .venv (first run takes about a minute)"
-  if ! .venv/bin/python -m pip install -q --disable-pip-version-check -e '.[test]' > .venv/pip.log 2>&1; then
+  if ! .venv/bin/python -m pip install -q --disable-pip-version-check -c scripts/constraints.txt -e '.[test]' > .venv/pip.log 2>&1; then
     grep -v "is ignored" .venv/pip.log >&2; exit 1
   fi
   rm -f .venv/.installed-*; touch "$stamp"

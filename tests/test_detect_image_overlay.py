@@ -33,7 +33,11 @@ def test_a_ball_beside_a_reticle_is_found_where_it_is(seed):
     case = render_case("rov", seed, SCALE)
     det = detect_sphere_in_image(_with_reticle(case.image), case.cam, case.radius_m)
     assert det.found, det.reason
-    assert np.hypot(*(det.center_uv_px - case.true_uv_px)) < 0.5
+    # where it is: within 1 px (placed on the reticle it is tens of px off) and within 2 sigma of
+    # its own stated covariance; these are analog / JPEG frames, found ~0.5 px RMS without a reticle
+    err = det.center_uv_px - case.true_uv_px
+    assert np.hypot(*err) < 1.0
+    assert float(err @ np.linalg.solve(det.cov_uv_px2, err)) < 4.0
 
 
 def test_a_step_edge_is_not_a_line_and_a_thin_ring_is():
