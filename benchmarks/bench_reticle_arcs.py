@@ -15,7 +15,6 @@ import argparse
 import sys
 from pathlib import Path
 
-import cv2
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -23,20 +22,9 @@ sys.path.insert(0, str(ROOT))
 
 from calib_core.detect.image.detect import detect_sphere_in_image  # noqa: E402
 from calib_core.synth.image_cases import render_case  # noqa: E402
+from calib_core.synth.photo.rov_osd import broken_reticle  # noqa: E402
 
 SHARES = (1.0, 0.7, 0.45)
-
-
-def reticle_arcs(img: np.ndarray, share: float, frac: float = 0.32, arcs: int = 4) -> np.ndarray:
-    """A copy of ``img`` with a reticle of ``arcs`` arcs covering ``share`` of the circle."""
-    out = np.ascontiguousarray(img.copy())
-    H, W = img.shape[:2]
-    c, r = (W // 2 * 4, H // 2 * 4), int(frac * H * 4)
-    for shade, t in (((0, 0, 0), 3), ((255, 255, 255), 1)):
-        for k in range(arcs):
-            a0 = k * 360.0 / arcs + 10
-            cv2.ellipse(out, c, (r, r), 0, a0, a0 + share * 360.0 / arcs, shade, t, cv2.LINE_AA, shift=2)
-    return out
 
 
 def main(argv=None) -> int:
@@ -50,9 +38,9 @@ def main(argv=None) -> int:
         free = render_case("rov", seed, a.scale, with_ball=False)
         ball = render_case("rov", seed, a.scale)
         for s in SHARES:
-            f = detect_sphere_in_image(reticle_arcs(free.image, s), free.cam, free.radius_m)
+            f = detect_sphere_in_image(broken_reticle(free.image, s), free.cam, free.radius_m)
             rows[s]["free_false"] += int(f.found)
-            d = detect_sphere_in_image(reticle_arcs(ball.image, s), ball.cam, ball.radius_m)
+            d = detect_sphere_in_image(broken_reticle(ball.image, s), ball.cam, ball.radius_m)
             err = float(np.hypot(*(d.center_uv_px - ball.true_uv_px))) if d.found else None
             rows[s]["hit" if err is not None and err <= 3.0 else "false" if d.found else "miss"] += 1
             print(f"s{seed} share {s:.2f}: ball-free found={f.found} score={f.score:.2f} | ball "

@@ -3,7 +3,6 @@ scene) is not a ball's outline (calib_core/detect/image/overlay.py); a ball besi
 found where it is. Frames of the held-out "rov" kind (training seeds, reduced scale) with a
 reticle drawn at the frame's centre."""
 
-import cv2
 import numpy as np
 import pytest
 
@@ -53,24 +52,11 @@ def test_a_step_edge_is_not_a_line_and_a_thin_ring_is():
     assert overlay.drawn_line_share(ring, (0.0, 0.0), shifted, 32.0) == 1.0
 
 
-def _broken_reticle(img, frac=0.32, arcs=4, drawn=0.45):
-    """A circle reticle drawn as ``arcs`` arcs covering ``drawn`` of the circle (a reticle with
-    gaps, as many OSDs draw it), white with a dark outline, at the frame's centre."""
-    out = np.ascontiguousarray(img.copy())
-    H, W = img.shape[:2]
-    c, r = (W // 2 * 4, H // 2 * 4), int(frac * H * 4)
-    for shade, t in (((0, 0, 0), 3), ((255, 255, 255), 1)):
-        for k in range(arcs):
-            a0 = k * 360.0 / arcs + 10
-            cv2.ellipse(out, c, (r, r), 0, a0, a0 + drawn * 360.0 / arcs, shade, t, cv2.LINE_AA, shift=2)
-    return out
-
-
 def test_a_broken_reticle_is_no_ball_where_its_arcs_are_seen():
     # main took this one (its arcs are 45 % of the circle: the line test counted its gaps too) at 0.99
     case = render_case("rov", 3, SCALE, with_ball=False)
     assert not detect_sphere_in_image(case.image, case.cam, case.radius_m).found
-    det = detect_sphere_in_image(_broken_reticle(case.image), case.cam, case.radius_m)
+    det = detect_sphere_in_image(rov_osd.broken_reticle(case.image, 0.45), case.cam, case.radius_m)
     assert not det.found, f"the broken reticle taken for a ball at {det.center_uv_px} ({det.score:.2f})"
 
 
@@ -78,7 +64,7 @@ def test_a_broken_reticle_is_no_ball_where_its_arcs_are_seen():
 def test_a_ball_beside_a_broken_reticle_is_not_placed_on_it(seed):
     # main placed seed 4's ball on the reticle, 81 px off, at 0.97
     case = render_case("rov", seed, SCALE)
-    det = detect_sphere_in_image(_broken_reticle(case.image), case.cam, case.radius_m)
+    det = detect_sphere_in_image(rov_osd.broken_reticle(case.image, 0.45), case.cam, case.radius_m)
     if det.found:
         assert np.hypot(*(det.center_uv_px - case.true_uv_px)) < 1.0
     else:

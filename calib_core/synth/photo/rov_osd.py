@@ -114,6 +114,20 @@ def draw_reticle(img: np.ndarray, osd: Osd) -> None:
             cv2.circle(img, (c[0] * 4, c[1] * 4), int(osd.reticle_px * 4), shade, t, cv2.LINE_AA, shift=2)
 
 
+def broken_reticle(img: np.ndarray, drawn_share: float, radius_share: float = 0.32, arcs: int = 4) -> np.ndarray:
+    """A copy of the RGB uint8 frame with a circle reticle drawn as ``arcs`` arcs (a reticle with
+    gaps, as many OSDs draw it) covering ``drawn_share`` (0-1) of the circle: white with a dark
+    outline, at the frame's centre, of radius ``radius_share`` x the frame height (px)."""
+    out = np.ascontiguousarray(img.copy())
+    H, W = img.shape[:2]
+    c, r = (W // 2 * 4, H // 2 * 4), int(radius_share * H * 4)  # 2 bits of sub-pixel position
+    for shade, t in (((0, 0, 0), 3), ((255, 255, 255), 1)):
+        for k in range(arcs):
+            a0 = k * 360.0 / arcs + 10
+            cv2.ellipse(out, c, (r, r), 0, a0, a0 + drawn_share * 360.0 / arcs, shade, t, cv2.LINE_AA, shift=2)
+    return out
+
+
 def draw_osd(img: np.ndarray, osd: Osd) -> np.ndarray:
     """A copy of the RGB uint8 frame with the display burned in."""
     out = np.ascontiguousarray(img.copy())
