@@ -40,6 +40,7 @@ import yaml
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
+from benchmarks._machine import machine_line  # noqa: E402
 from benchmarks._table import print_targets  # noqa: E402
 
 PROBE = ("import sys, runpy; sys.argv = ['sonarcal'] + sys.argv[1:]; "
@@ -218,8 +219,10 @@ def main(argv=None):
     cache = Path(a.cache)
     cache.mkdir(parents=True, exist_ok=True)
     if a.pairs:
+        print(machine_line())
         return fresh_pairs(cache, a.pairs, a.other_code)
     checks = []
+    print(machine_line())
     print(f"workers: {os.cpu_count()} cores; load average before: {os.getloadavg()}")
     with tempfile.TemporaryDirectory() as tmp:
         root = Path(tmp) / "s100"

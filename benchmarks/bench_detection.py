@@ -150,6 +150,9 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="fewer presets/seeds")
     args = ap.parse_args(argv)
+    from benchmarks._machine import machine_line
+
+    print(machine_line(), flush=True)
     runs = ([("canal", 0), ("bright", 0)] if args.quick else
             [("canal", 0), ("canal", 1), ("bright", 0), ("seabed", 0), ("decoys", 0)])
     n_cap = 3

@@ -126,6 +126,9 @@ def main(argv=None) -> int:
     ap.add_argument("--cache", type=Path, default=None, help="folder for generated sessions")
     ap.add_argument("--quick", action="store_true", help="1 seed, 3 captures, skip 500k")
     args = ap.parse_args(argv)
+    from benchmarks._machine import machine_line
+
+    print(machine_line(), flush=True)
     if args.quick:
         args.seeds, args.captures = 1, 3
     cache = args.cache or Path(tempfile.mkdtemp(prefix="bench_sonar_"))
