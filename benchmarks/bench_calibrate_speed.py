@@ -223,7 +223,6 @@ def main(argv=None):
         return fresh_pairs(cache, a.pairs, a.other_code)
     checks = []
     print(machine_line())
-    print(f"workers: {os.cpu_count()} cores; load average before: {os.getloadavg()}")
     with tempfile.TemporaryDirectory() as tmp:
         root = Path(tmp) / "s100"
         synthetic_session(root, 100)

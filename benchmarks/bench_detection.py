@@ -30,6 +30,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
+from benchmarks._machine import machine_line  # noqa: E402
 from calib_core.camera import CameraModel  # noqa: E402
 from calib_core.detect.image.detect import background_model, detect_sphere_in_image, prepare_background  # noqa: E402
 from calib_core.geometry import invert_T, transform_points  # noqa: E402
@@ -150,8 +151,6 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="fewer presets/seeds")
     args = ap.parse_args(argv)
-    from benchmarks._machine import machine_line
-
     print(machine_line(), flush=True)
     runs = ([("canal", 0), ("bright", 0)] if args.quick else
             [("canal", 0), ("canal", 1), ("bright", 0), ("seabed", 0), ("decoys", 0)])

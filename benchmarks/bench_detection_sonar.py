@@ -28,6 +28,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from benchmarks._machine import machine_line  # noqa: E402
 from calib_core.detect.sonar.detect import detect_sphere_in_cloud  # noqa: E402
 from calib_core.detect.sonar.beam import estimate_beam_width_deg  # noqa: E402
 from calib_core.io.clouds import load_cloud  # noqa: E402
@@ -126,8 +127,6 @@ def main(argv=None) -> int:
     ap.add_argument("--cache", type=Path, default=None, help="folder for generated sessions")
     ap.add_argument("--quick", action="store_true", help="1 seed, 3 captures, skip 500k")
     args = ap.parse_args(argv)
-    from benchmarks._machine import machine_line
-
     print(machine_line(), flush=True)
     if args.quick:
         args.seeds, args.captures = 1, 3
