@@ -34,6 +34,7 @@ from calib_core.detect.image.fit import (DRAWN_LINE, MIN_EDGE_WIDTH_PX, SMOOTH_S
                                         TIGHT_RMS_FRACTION, CandidateFit, refine_candidate, seen_mask)
 from calib_core.detect.image.overlay import drawn_in_image
 from calib_core.detect.image.closing import closed_candidates, view_of
+from calib_core.detect.image.conformal import candidates_in_view, stereographic_view, view_elongation
 from calib_core.detect.image.discs import candidates_by_discs
 from calib_core.detect.image.highlight import host_candidates, is_clipped_spot
 from calib_core.detect.image.hough import hough_circle
@@ -413,6 +414,9 @@ DISC_CANDIDATES = 6  # colour-distance disc candidates refined when the other cu
 CLOSED_CANDIDATES = 3  # per view (closed, opened) in the see-through cue
 CLOSED_MIN_FIT = 0.7  # the fit score (outline share x roundness) a see-through cue's outline needs
 VOTE_CANDIDATES = 8  # round-outline vote peaks refined (clutter outranks a faint large outline often)
+# where a lens stretches a small sphere's image by less than this (aspect ratio), the raw
+# image's votes still meet at its outline: the stereographic view's cue looks only elsewhere
+STEREO_MIN_ELONGATION = 1.15
 FAINT_CONTRAST = 10.0  # grey levels: a background-difference outline this faint gets a second look
 
 
@@ -522,7 +526,30 @@ def _more_cues(look, cands, fits):
     if _clear(fits) and not _clear_in_print(look, cands, fits):
         return cands, fits
     cands, fits = _print_cue(look, cands, fits)
-    return (cands, fits) if _clear(fits) else _closed_cue(look, cands, fits)
+    if not _clear(fits):
+        cands, fits = _closed_cue(look, cands, fits)
+    return (cands, fits) if _clear(fits) else _stereo_cue(look, cands, fits)
+
+
+def _stereo_cue(look, cands, fits):
+    """Sixth cue, when nothing else gave a clear outline, behind a wide lens only: round-outline
+    votes in the stereographic view (:mod:`.conformal`), where an off-axis sphere that the lens
+    stretched into an ellipse too long for circle votes is a circle again. Only its clear
+    outlines count; otherwise the shared random stream is left as it was (as :func:`_print_cue`)."""
+    if view_elongation(look.cam) < STEREO_MIN_ELONGATION:
+        return cands, fits
+    view = stereographic_view(look.cam, look.s)
+    if view is None:
+        return cands, fits
+    # (only where the lens stretches a sphere that much: elsewhere the raw votes saw the same)
+    more = _new_candidates(fits, candidates_in_view(look.small, look.cam, view, look.r_bounds, VOTE_CANDIDATES,
+                                                    STEREO_MIN_ELONGATION))
+    state = look.rng.bit_generator.state
+    sixth = _refine_all(look, _in_order(more, look.max_candidates), False)
+    if _clear(sixth):
+        return cands + more, fits + sixth
+    look.rng.bit_generator.state = state
+    return cands, fits
 
 
 def _closed_cue(look, cands, fits):

@@ -191,7 +191,7 @@ def refine_candidate(image: np.ndarray, cam: CameraModel, cand: Candidate, spher
     H, W = image.shape[:2]
     R = max(cand.axes_px[0], cand.radius_px)
     # the contrast detector's radius is good to ~30 %, the background blob's to ~10 %
-    band = (-0.45, 0.8) if cand.source in ("contrast", "hint", "votes") or cand.source.startswith("closed") \
+    band = (-0.45, 0.8) if cand.source in ("contrast", "hint", "votes", "votes-stereo") or cand.source.startswith("closed") \
         else (-0.45, 0.5)
     m = int(np.ceil((1.1 + band[1]) * R + 8))
     box = (max(0, int(cand.centre_px[0]) - m), max(0, int(cand.centre_px[1]) - m),
