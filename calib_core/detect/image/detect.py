@@ -5,8 +5,10 @@ Main entry: :func:`detect_sphere_in_image`. Steps:
 1. coarse candidates in a downscaled image: difference to a background model when there is
    one (:mod:`.region`), else round-outline votes (:mod:`.votes`), then, when those
    give no clean outline, a colour centre-surround contrast (:mod:`.region`) and discs
-   whose colour stands out from a textured surround (:mod:`.discs`); sizes bounded by
-   the intrinsics, the known radius and plausible ranges;
+   whose colour stands out from a textured surround (:mod:`.discs`), a print's cluster
+   (:mod:`.pattern`), a see-through ball on a closed view (:mod:`.closing`), and behind a wide
+   lens votes in the stereographic view, where an off-axis sphere is a circle again
+   (:mod:`.conformal`); sizes bounded by the intrinsics, the known radius and plausible ranges;
 2. per candidate, full-resolution sub-pixel silhouette edges and a robust fit of the sphere's
    silhouette cone in undistorted normalised coordinates (:mod:`.fit`, :mod:`.cone`);
    the sphere centre's perspective projection follows exactly from the cone axis (then the lens
