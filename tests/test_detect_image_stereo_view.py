@@ -132,3 +132,12 @@ def test_ball_in_a_wide_lens_corner_missed_without_the_view(corner_chair, monkey
     case = corner_chair
     det = im.detect_sphere_in_image(case.image, case.cam, case.radius_m)
     assert not det.found or np.hypot(*(det.center_uv_px - case.true_uv_px)) > 3.0
+
+
+def test_the_same_wide_lens_scene_without_the_ball_finds_nothing():
+    # the cue runs on every image where nothing clear was found: on the ball-free scene it must
+    # not make a round outline of the seat, the wall's edge or the brick courses
+    case = render_case("chair", 1024, 0.5, with_ball=False)
+    assert im.view_elongation(case.cam) >= im.STEREO_MIN_ELONGATION  # the cue looks here
+    det = im.detect_sphere_in_image(case.image, case.cam, case.radius_m)
+    assert not det.found, (det.center_uv_px, det.score)
