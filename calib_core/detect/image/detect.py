@@ -217,7 +217,7 @@ def _rejected(fits) -> list[str]:
     """The candidates looked at and why each was refused ("<reason> at (u, v)")."""
     out = []
     for _, f in fits:
-        if f.reason and f.centre_uv_px is not None:
+        if f.reason and f.centre_uv_px is not None and " at (" not in f.reason:
             out.append(f"{f.reason} at ({f.centre_uv_px[0]:.0f}, {f.centre_uv_px[1]:.0f})")
         elif f.reason:
             out.append(f.reason)
