@@ -244,6 +244,8 @@ def _grown(cam, sig: Signal, fit1: ConeFit, R: float, a_range_rad, rng, sphere_r
 # an accepted outline with less than this share of the strong image edges at it running along
 # it (tangent.along_share) is strung together from things that cross it (struts, threads)
 MIN_EDGES_ALONG = 0.6
+# (the extras key marking an outline refused so: detect._crossing_blocker)
+EDGES_CROSS_KEY = "edges_cross"
 
 
 def _edges_along(sig: Signal, res: CandidateFit) -> None:
@@ -257,6 +259,7 @@ def _edges_along(sig: Signal, res: CandidateFit) -> None:
     if share < MIN_EDGES_ALONG:
         res.ok, res.credible = False, False
         res.reason = crossing_edges_reason(share, res.centre_uv_px)
+        res.extras[EDGES_CROSS_KEY] = True
 
 
 DRAWN_LINE = "a round line drawn over the image (an overlay), not an outline"
