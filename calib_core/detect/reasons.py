@@ -36,6 +36,14 @@ def stereo_refusal_reason(off_px: float, source: str) -> str:
     return f"round outline {off_px:.0f} px from where camera {source} and the stereo transform put the sphere"
 
 
+def crossing_edges_reason(along_share: float, centre_uv_px) -> str:
+    """Why a round outline was refused because the image edges at it cross it rather than run
+    along it (calib_core.detect.image.tangent): a lattice's struts or a net's threads strung
+    into a circle. ``along_share`` 0-1; ``centre_uv_px`` the outline's centre (px)."""
+    u, v = centre_uv_px
+    return f"edges cross the outline at ({u:.0f}, {v:.0f}): only {100 * along_share:.0f} % run along it"
+
+
 def reason_kind(reason: str) -> str:
     """A reason without its numbers and places: "outline 40 % hidden ... at (3, 4)" ->
     "outline % hidden ..."; "two round objects: (..) and (..)" -> "two round objects"."""

@@ -32,7 +32,7 @@ import numpy as np
 
 from calib_core.camera import CameraModel
 from calib_core.detect.image.blur import SMALL_RADIUS_PX, blur_range_floor_m, clean_rms_px
-from calib_core.detect.image.fit import (DRAWN_LINE, MIN_EDGE_WIDTH_PX, SMOOTH_SIGMA_PX, TIGHT_MIN_SUPPORT,
+from calib_core.detect.image.fit import (DRAWN_LINE, EDGES_CROSS_KEY, MIN_EDGE_WIDTH_PX, SMOOTH_SIGMA_PX, TIGHT_MIN_SUPPORT,
                                         TIGHT_RMS_FRACTION, CandidateFit, refine_candidate, seen_mask)
 from calib_core.detect.image.overlay import drawn_in_image
 from calib_core.detect.image.closing import closed_candidates, view_of
@@ -195,6 +195,27 @@ def _stronger_refused(fits, best):
     return None
 
 
+# outlines whose evidence (_evidence) is within this ratio of each other are comparable (as for
+# two round objects and a stronger refused outline)
+COMPARABLE_EVIDENCE = 0.5
+
+
+def _crossing_blocker(fits, best):
+    """A round outline refused because the edges at it cross it (fit._edges_along) that
+    outweighs the best accepted one: comparable to (COMPARABLE_EVIDENCE of) an accepted outline
+    that is not clean and whole, or more than 1 / COMPARABLE_EVIDENCE times a clean whole one.
+    Where circles are strung from a lattice or a net, a weaker outline is no better founded
+    than they are: neither is taken (the reason names the strung one)."""
+    ev = _evidence(best)
+    need = COMPARABLE_EVIDENCE * ev if not _clean_whole(best) else ev / COMPARABLE_EVIDENCE
+    for _, f in fits:
+        if (f.extras.get(EDGES_CROSS_KEY) and f.silhouette_px is not None
+                and np.hypot(*(f.centre_uv_px - best.centre_uv_px)) > _mean_radius(best.silhouette_px)
+                and _evidence(f) > need):
+            return f
+    return None
+
+
 def _clean_whole(f) -> bool:
     """An accepted outline that is credible (mostly seen, round, the surroundings just outside it
     unlike the sphere) and clean (fit score at least WEAK_FIT): a round object, not clutter."""
@@ -220,7 +241,7 @@ def _rejected(fits) -> list[str]:
     """The candidates looked at and why each was refused ("<reason> at (u, v)")."""
     out = []
     for _, f in fits:
-        if f.reason and f.centre_uv_px is not None:
+        if f.reason and f.centre_uv_px is not None and " at (" not in f.reason:
             out.append(f"{f.reason} at ({f.centre_uv_px[0]:.0f}, {f.centre_uv_px[1]:.0f})")
         elif f.reason:
             out.append(f.reason)
@@ -770,6 +791,9 @@ def _verdict(look, fits, cands, method, hinted: bool) -> ImageDetection:
         return _not_found(blocker.reason, method, candidates=len(cands),
                           partial_center_uv_px=[round(float(u), 2), round(float(v), 2)],
                           rejected=_rejected(fits))
+    crossing = _crossing_blocker(fits, good[0][1])
+    if crossing is not None and not hinted:
+        return _not_found(crossing.reason, method, candidates=len(cands), rejected=_rejected(fits))
     if len(good) > 1 and not hinted and _evidence(good[1][1]) >= 0.5 * _evidence(good[0][1]):
         # both kept (u, v, range_m): a caller with another clue (the sonar's range, a click)
         # can choose; the detector does not guess

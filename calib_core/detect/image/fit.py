@@ -31,6 +31,8 @@ from calib_core.detect.image.corners import Wobble, outline_wobble
 from calib_core.detect.image.limb import lopsided_floor_px2
 from calib_core.detect.image.overlay import is_drawn_line
 from calib_core.detect.image.region import Candidate
+from calib_core.detect.image.tangent import along_share
+from calib_core.detect.reasons import crossing_edges_reason
 
 SMOOTH_SIGMA_PX = 1.0
 # Neighbouring pass-2 edge samples are ~EDGE_SPACING_PX apart while the smoothing and the optics
@@ -234,7 +236,30 @@ def _grown(cam, sig: Signal, fit1: ConeFit, R: float, a_range_rad, rng, sphere_r
         res.ok, res.credible, res.reason = False, False, DRAWN_LINE
     if res.ok and fit1.reading == "several" and not _several_held(sig, res, R, outside_bad):
         res.ok, res.credible, res.reason = False, False, "no round outline"
+    if res.ok:
+        _edges_along(sig, res)
     return res
+
+
+# an accepted outline with less than this share of the strong image edges at it running along
+# it (tangent.along_share) is strung together from things that cross it (struts, threads)
+MIN_EDGES_ALONG = 0.6
+# (the extras key marking an outline refused so: detect._crossing_blocker)
+EDGES_CROSS_KEY = "edges_cross"
+
+
+def _edges_along(sig: Signal, res: CandidateFit) -> None:
+    """The last check of an accepted outline: most edges at it run along it (tangent.py), or it
+    is refused. A motion smear's outline is exempt (its ramps' gradients need not follow the
+    ellipse fitted through their middles)."""
+    if res.fit.smear is not None:
+        return
+    share = along_share(sig.diff if sig.diff is not None else sig.img, sig.origin, res.silhouette_px)
+    res.extras["edges_along"] = round(share, 3)
+    if share < MIN_EDGES_ALONG:
+        res.ok, res.credible = False, False
+        res.reason = crossing_edges_reason(share, res.centre_uv_px)
+        res.extras[EDGES_CROSS_KEY] = True
 
 
 DRAWN_LINE = "a round line drawn over the image (an overlay), not an outline"
