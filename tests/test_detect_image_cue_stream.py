@@ -5,6 +5,7 @@ cue (calib_core.detect.image.detect._more_cues)."""
 
 import numpy as np
 
+from calib_core.camera import CameraModel
 from calib_core.detect.image import detect as im
 from calib_core.detect.image.fit import CandidateFit
 from calib_core.detect.image.region import Candidate
@@ -13,8 +14,14 @@ from calib_core.detect.image.region import Candidate
 class _Look:
     """Just what _more_cues uses; every refinement draws from the stream and finds nothing."""
 
-    def __init__(self):
+    def __init__(self, fx=2000.0):
         self.rng, self.r_bounds, self.max_candidates = np.random.default_rng(0), (5.0, 200.0), 10
+        # a narrow lens (the stereographic cue does not look) unless ``fx`` makes it wide
+        self.cam = CameraModel(640, 480, np.array([[fx, 0, 320.0], [0, fx, 240.0], [0, 0, 1]]))
+        self.s = 1
+        yy, xx = np.mgrid[0:480, 0:640]
+        ring = (np.abs(np.hypot(xx - 560, yy - 70) - 40) < 3)  # a round line near a corner
+        self.small = np.where(ring[..., None], 230, 40).astype(np.uint8).repeat(3, axis=2)
 
     def contrast_candidates(self):
         return []
@@ -39,3 +46,18 @@ def test_a_discarded_pattern_guess_leaves_the_random_stream_untouched():
     cands, fits = im._more_cues(look, blobs, [])
     assert cands == blobs and fits == []  # discarded
     assert look.rng.random() == np.random.default_rng(0).random()
+
+
+def test_a_discarded_stereographic_guess_leaves_the_random_stream_untouched():
+    # a wide lens (fx 300 px for 640 px: the corners stretch a sphere 1.5x): the sixth cue votes in
+    # the stereographic view and refines what it finds there; nothing clear, so the stream is restored
+    look = _Look(fx=300.0)
+    assert im.view_elongation(look.cam) >= im.STEREO_MIN_ELONGATION
+    before = look.rng.bit_generator.state
+    refined = []
+    plain = look.refine
+    look.refine = lambda c: refined.append(c) or plain(c)
+    cands, fits = im._stereo_cue(look, [], [])
+    assert refined and all(c.source == "votes-stereo" for c in refined)  # it looked, and drew
+    assert cands == [] and fits == []
+    assert look.rng.bit_generator.state == before
