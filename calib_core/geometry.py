@@ -5,6 +5,8 @@ Rotation vectors are axis * angle in radians (OpenCV / scipy convention).
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 
@@ -16,11 +18,22 @@ def make_T(R: np.ndarray, t_m: np.ndarray) -> np.ndarray:
     return T
 
 
+def exp_so3(omega_rad: np.ndarray) -> np.ndarray:
+    """Rotation matrix of a rotation vector (rad) (Rodrigues' formula; series near 0)."""
+    w = np.asarray(omega_rad, float).reshape(3)
+    th2 = float(w @ w)
+    Wx = np.array([[0.0, -w[2], w[1]], [w[2], 0.0, -w[0]], [-w[1], w[0], 0.0]])
+    if th2 < 1e-12:
+        a, b = 1.0 - th2 / 6.0, 0.5 - th2 / 24.0
+    else:
+        th = math.sqrt(th2)
+        a, b = math.sin(th) / th, (1.0 - math.cos(th)) / th2
+    return np.eye(3) + a * Wx + b * (Wx @ Wx)
+
+
 def T_from_rotvec(rotvec_rad: np.ndarray, t_m: np.ndarray) -> np.ndarray:
     """4x4 transform from a rotation vector (rad) and a translation (m)."""
-    from scipy.spatial.transform import Rotation  # lazy: scipy costs ~0.3 s at every CLI start
-
-    return make_T(Rotation.from_rotvec(np.asarray(rotvec_rad, float).reshape(3)).as_matrix(), t_m)
+    return make_T(exp_so3(rotvec_rad), t_m)
 
 
 def rotvec_from_T(T: np.ndarray) -> np.ndarray:

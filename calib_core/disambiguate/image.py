@@ -16,7 +16,6 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from calib_core.camera import CameraModel
 
@@ -32,6 +31,8 @@ def rigid_fit(X_sonar_m: np.ndarray, P_cam_m: np.ndarray) -> np.ndarray | None:
     cx, cp = X_sonar_m.mean(axis=0), P_cam_m.mean(axis=0)
     if np.linalg.matrix_rank(X_sonar_m - cx, tol=1e-3) < 2:
         return None
+    from scipy.spatial.transform import Rotation  # lazy: scipy.spatial costs ~0.2 s at every CLI start
+
     R, _ = Rotation.align_vectors(P_cam_m - cp, X_sonar_m - cx)
     T = np.eye(4)
     T[:3, :3] = R.as_matrix()

@@ -22,21 +22,9 @@ import numpy as np
 
 from calib_core.camera import CameraModel, pi_jacobian
 from calib_core.errors import SessionError
+from calib_core.geometry import exp_so3  # noqa: F401  (the solvers' rotation exponential)
 
 MIN_DEPTH_M = 1e-3  # points nearer than this to the camera plane are treated as behind it
-
-
-def exp_so3(omega_rad: np.ndarray) -> np.ndarray:
-    """Rotation matrix of a rotation vector (rad) (Rodrigues' formula; series near 0)."""
-    w = np.asarray(omega_rad, float).reshape(3)
-    th2 = float(w @ w)
-    Wx = np.array([[0.0, -w[2], w[1]], [w[2], 0.0, -w[0]], [-w[1], w[0], 0.0]])
-    if th2 < 1e-12:
-        a, b = 1.0 - th2 / 6.0, 0.5 - th2 / 24.0
-    else:
-        th = math.sqrt(th2)
-        a, b = math.sin(th) / th, (1.0 - math.cos(th)) / th2
-    return np.eye(3) + a * Wx + b * (Wx @ Wx)
 
 
 def log_so3(R: np.ndarray) -> np.ndarray:

@@ -22,9 +22,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize import least_squares
 
 from calib_core.camera import pi_jacobian
+from calib_core.solve.lm import levenberg_marquardt
 from calib_core.solve.model import (MIN_DEPTH_M, CameraData, RigState, build_groups, exp_so3, group_covariance,
                                     log_so3, mahalanobis2, project_group, whitening)
 
@@ -307,9 +307,9 @@ def refine(problem: RigProblem, state0: RigState, robust: str | None = None, rob
     n_outer = 0
     for n_outer in range(1, max_outer + 1):
         Ws, ws = weights_for(problem, state, robust, robust_k)
-        sol = least_squares(lambda th: problem.whitened(problem.apply(state, th), Ws), np.zeros(problem.n_params),
-                            jac=lambda th: problem.whitened_jacobian(state, th, Ws), method="lm",
-                            xtol=1e-14, ftol=1e-14, gtol=1e-14, max_nfev=200 * problem.n_params)
+        sol = levenberg_marquardt(lambda th: problem.whitened(problem.apply(state, th), Ws),
+                                  lambda th: problem.whitened_jacobian(state, th, Ws), np.zeros(problem.n_params),
+                                  xtol=1e-14, ftol=1e-14, gtol=1e-14, max_nfev=200 * problem.n_params)
         state = problem.apply(state, sol.x)
         if np.max(np.abs(sol.x)) < step_tol and n_outer > 1:
             converged = True
