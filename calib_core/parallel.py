@@ -165,23 +165,24 @@ def _run_in_process(data, todo, progress, beam_ids: list, beam_detections: dict)
     """The detections in this process, in ``todo``'s order; the images (and background models)
     are decoded meanwhile in a second thread (:mod:`calib_core.prefetch`): on a second core the
     decoding (0.2 CPU-s of a fresh 9-capture 1080p calibrate) overlaps the sonar's work."""
-    from calib_core.detect.entries import detect_one, prefetch_jobs, session_beam_width
+    from calib_core.detect.entries import detect_one, prefetch_jobs, session_beam_width_shared
     from calib_core.prefetch import Prefetch
 
     with Prefetch(prefetch_jobs(data, todo), PREFETCH_AHEAD) as ahead:
+        shared = {}  # the beam width's clouds and searches, for their own sonar detections
         if beam_ids:
-            data.beam_width_deg = session_beam_width(data, beam_ids, beam_detections)
+            data.beam_width_deg, shared = session_beam_width_shared(data, beam_ids, beam_detections)
         out, cams = [], set()
         for i, (cid, sensor) in enumerate(todo):
             if progress:
                 progress(i, len(todo), f"{cid} {sensor}")
-            image = None
+            image, cloud = None, shared.pop(cid, None) if sensor == "sonar" else None
             if sensor != "sonar":
                 if sensor not in cams:
                     cams.add(sensor)
                     ahead.take(("background", sensor))
                 image = ahead.take((cid, sensor))
-            out.append((cid, sensor, detect_one(data, cid, sensor, image_rgb=image)))
+            out.append((cid, sensor, detect_one(data, cid, sensor, image_rgb=image, cloud=cloud)))
     return out
 
 

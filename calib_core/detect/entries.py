@@ -109,11 +109,14 @@ def detect_image_entry(data: SessionData | Session, capture_id: str, cam: str,
     return det.to_entry()
 
 
-def detect_sonar_entry(data: SessionData | Session, capture_id: str, seed_center_m=None, points_sonar_m=None) -> dict:
+def detect_sonar_entry(data: SessionData | Session, capture_id: str, seed_center_m=None, points_sonar_m=None,
+                       prepared=None) -> dict:
     """Run the sonar detector on one capture's cloud; return a detections.yaml entry (auto).
 
     Uses the session's effective beam width (estimated by :func:`detect_session`, else the
-    manifest's ``sonar.beam_width_deg``) and records it in the entry.
+    manifest's ``sonar.beam_width_deg``) and records it in the entry. ``points_sonar_m``: the
+    cloud, when loaded already; ``prepared``: its search's beam-width-independent part
+    (:func:`calib_core.detect.sonar.search.prepare_search`, e.g. from the beam width estimate).
     """
     from calib_core.detect.sonar.detect import detect_sphere_in_cloud
     from calib_core.io.clouds import load_cloud
@@ -123,7 +126,8 @@ def detect_sonar_entry(data: SessionData | Session, capture_id: str, seed_center
     if points_sonar_m is None:
         points_sonar_m = load_cloud(s.capture(capture_id).cloud_path).points_m
     beam = data.effective_beam_width_deg
-    det = detect_sphere_in_cloud(points_sonar_m, s.sphere_radius_m, beam_width_deg=beam, seed_center_m=seed_center_m)
+    det = detect_sphere_in_cloud(points_sonar_m, s.sphere_radius_m, beam_width_deg=beam, seed_center_m=seed_center_m,
+                                 prepared=prepared)
     entry = det.to_entry()
     units = None if det.found else cloud_units_reason(points_sonar_m, 2 * s.sphere_radius_m)
     if units:
@@ -133,9 +137,11 @@ def detect_sonar_entry(data: SessionData | Session, capture_id: str, seed_center
     return entry
 
 
-def estimate_session_beam_width(data: SessionData, clouds: dict[str, np.ndarray], detections: dict) -> float | None:
+def estimate_session_beam_width(data: SessionData, clouds: dict[str, np.ndarray], detections: dict,
+                                prepared: dict | None = None) -> float | None:
     """Effective beam width (deg) from all sphere scans of the session, or None when it cannot
     be estimated (fewer than 3 spheres found). Operator-validated sonar centres are used as given.
+    ``prepared``: {capture_id: the cloud's prepared search} (:func:`prepared_searches`), optional.
 
     Why: blooming depends on the angle out to which a strong target still returns, which is
     the nominal width only approximately (it depends on target strength and threshold).
@@ -145,7 +151,8 @@ def estimate_session_beam_width(data: SessionData, clouds: dict[str, np.ndarray]
     ids = list(clouds)
     nominal = data.session.beam_width_deg or 1.0
     est = estimate_beam_width_deg([clouds[c] for c in ids], data.session.sphere_radius_m, nominal_deg=nominal,
-                                  centers_sonar_m=[_operator_center(detections, c) for c in ids])
+                                  centers_sonar_m=[_operator_center(detections, c) for c in ids],
+                                  prepared=[(prepared or {}).get(c) for c in ids])
     return None if est.reason else float(est.beam_width_deg)
 
 
@@ -182,16 +189,48 @@ def beam_width_from_crops(data: SessionData, crops: list) -> float | None:
 def session_beam_width(data: SessionData, capture_ids: list[str], detections: dict) -> float | None:
     """Load the clouds of ``capture_ids`` and estimate the session's effective beam width
     (:func:`estimate_session_beam_width`); None when it cannot be estimated."""
+    return session_beam_width_shared(data, capture_ids, detections)[0]
+
+
+@dataclass(frozen=True)
+class SharedCloud:
+    """A capture's cloud (sonar frame, m) as the beam width estimate loaded it, and the part of
+    its candidate search that does not depend on the beam width
+    (:func:`calib_core.detect.sonar.search.prepare_search`): its final detection reuses both."""
+
+    points_sonar_m: np.ndarray
+    prepared: object
+
+
+def session_beam_width_shared(data: SessionData, capture_ids: list[str],
+                              detections: dict) -> tuple[float | None, dict[str, SharedCloud]]:
+    """(:func:`session_beam_width`, {capture_id: SharedCloud} of the clouds whose sphere the
+    estimate detected: everything but operator-validated centres)."""
     from calib_core.io.clouds import load_cloud
 
     clouds = {cid: load_cloud(data.session.capture(cid).cloud_path).points_m for cid in capture_ids}
-    return estimate_session_beam_width(data, clouds, detections)
+    prepared = prepared_searches(data, clouds, detections)
+    width = estimate_session_beam_width(data, clouds, detections, prepared)
+    return width, {cid: SharedCloud(clouds[cid], prepared[cid]) for cid in prepared}
 
 
-def detect_one(data: SessionData, cid: str, sensor: str, image_rgb=None) -> dict:
+def prepared_searches(data: SessionData, clouds: dict[str, np.ndarray], detections: dict) -> dict:
+    """{capture_id: the cloud's prepared candidate search} for the clouds without an
+    operator-validated sonar centre (the ones the beam width estimate detects the sphere in)."""
+    from calib_core.detect.sonar.search import prepare_search
+
+    r = data.session.sphere_radius_m
+    return {cid: prepare_search(np.asarray(P, float).reshape(-1, 3), r) for cid, P in clouds.items()
+            if _operator_center(detections, cid) is None}
+
+
+def detect_one(data: SessionData, cid: str, sensor: str, image_rgb=None, cloud: SharedCloud | None = None) -> dict:
     """One automatic detection (no fingerprint): what a worker process runs. ``image_rgb``: an
-    image task's image, already loaded (:func:`load_capture_image`)."""
+    image task's image, already loaded (:func:`load_capture_image`); ``cloud``: a sonar task's
+    cloud and prepared search, from the beam width estimate."""
     if sensor == "sonar":
+        if cloud is not None:
+            return detect_sonar_entry(data, cid, points_sonar_m=cloud.points_sonar_m, prepared=cloud.prepared)
         return detect_sonar_entry(data, cid)
     return detect_image_entry(data, cid, sensor, image_rgb=image_rgb)
 

@@ -52,7 +52,7 @@ class BeamWidthEstimate:
 
 def estimate_beam_width_deg(clouds_sonar_m: list, sphere_radius_m: float,
                             nominal_deg: float = 1.0, centers_sonar_m: list | None = None,
-                            factors=None, progress=None) -> BeamWidthEstimate:
+                            factors=None, progress=None, prepared: list | None = None) -> BeamWidthEstimate:
     """Estimate the effective beam width (deg) from the sphere scans of one session.
 
     Args:
@@ -63,6 +63,8 @@ def estimate_beam_width_deg(clouds_sonar_m: list, sphere_radius_m: float,
             e.g. operator-validated detections.
         factors: multiples of the nominal width to scan (default 0, 0.05, 0.1 ... 1.6).
         progress: optional ``progress(done, total, label)``.
+        prepared: optional :func:`calib_core.detect.sonar.search.prepare_search` of each cloud
+            (None entries: computed when needed), to share with the clouds' later detections.
     """
     r = float(sphere_radius_m)
     crops = []
@@ -71,7 +73,8 @@ def estimate_beam_width_deg(clouds_sonar_m: list, sphere_radius_m: float,
     for k, i in enumerate(spread_order(n)):
         if len(crops) >= MAX_CAPTURES:
             break
-        crop = beam_crop(clouds_sonar_m[i], r, nominal_deg, None if centers_sonar_m is None else centers_sonar_m[i])
+        crop = beam_crop(clouds_sonar_m[i], r, nominal_deg, None if centers_sonar_m is None else centers_sonar_m[i],
+                         None if prepared is None else prepared[i])
         if crop is not None:
             crops.append(crop)
         if progress is not None:
@@ -79,15 +82,17 @@ def estimate_beam_width_deg(clouds_sonar_m: list, sphere_radius_m: float,
     return estimate_from_crops(crops, r, nominal_deg, factors, progress, n)
 
 
-def beam_crop(cloud_sonar_m, sphere_radius_m: float, nominal_deg: float = 1.0, center_sonar_m=None):
+def beam_crop(cloud_sonar_m, sphere_radius_m: float, nominal_deg: float = 1.0, center_sonar_m=None,
+              prepared=None):
     """One capture's share of the estimate: (points around the sphere, its centre, range sigma),
-    or None when no sphere is found there. ``center_sonar_m``: a known centre (else detected)."""
+    or None when no sphere is found there. ``center_sonar_m``: a known centre (else detected);
+    ``prepared``: the cloud's :func:`calib_core.detect.sonar.search.prepare_search` (optional)."""
     r = float(sphere_radius_m)
     h0 = np.radians(nominal_deg) / 2.0
     P = np.asarray(cloud_sonar_m, float).reshape(-1, 3)
     c, sig = center_sonar_m, 0.005
     if c is None:
-        det = _detect_any_width(P, r, nominal_deg)
+        det = _detect_any_width(P, r, nominal_deg, prepared)
         if det is None:
             return None
         c, sig = det.center_sonar_m, det.extras.get("sigma_range_m", 0.005)
@@ -195,10 +200,10 @@ def _search_order(scan: _WidthScan, factors: np.ndarray):
             yield f
 
 
-def _detect_any_width(P: np.ndarray, r: float, nominal_deg: float):
+def _detect_any_width(P: np.ndarray, r: float, nominal_deg: float, prepared=None):
     """The sphere found with the nominal width, else with none (an optical sensor), else None."""
     for width in (nominal_deg, 0.0):
-        det = detect_sphere_in_cloud(P, r, width)
+        det = detect_sphere_in_cloud(P, r, width, prepared=prepared)
         if det.found:
             return det
     return None

@@ -69,6 +69,7 @@ from calib_core.detect.sonar.outline import (
 )
 from calib_core.detect.sonar.search import (
     Candidate,
+    PreparedSearch,
     disc_coverage,
     find_candidates,
     crop_ball,
@@ -407,7 +408,7 @@ def _not_found(reason: str, method: str, **extras) -> SonarDetection:
 def detect_sphere_in_cloud(points_sonar_m: np.ndarray, sphere_radius_m: float,
                            beam_width_deg: float = 1.0, method: str = "cone-model",
                            seed_center_m=None, seed_radius_m: float = 0.3,
-                           rng_seed: int = 0) -> SonarDetection:
+                           rng_seed: int = 0, prepared: PreparedSearch | None = None) -> SonarDetection:
     """Find one sphere of known radius in a sonar cloud.
 
     Args:
@@ -424,6 +425,9 @@ def detect_sphere_in_cloud(points_sonar_m: np.ndarray, sphere_radius_m: float,
         seed_radius_m: search radius around the seed (m).
         rng_seed: key of the thinning and RANSAC draws (:mod:`.streams`; results are
             deterministic, and each cluster's draws depend on its own returns only).
+        prepared: the beam-width-independent part of the candidate search of these points
+            (:func:`.search.prepare_search` with ``rng_seed``; not with a seed), e.g. shared by the
+            detections of one cloud at two beam widths; the detection is the same without it.
 
     Returns:
         :class:`SonarDetection`; ``found=False`` with a ``reason`` when nothing trustworthy is
@@ -438,8 +442,10 @@ def detect_sphere_in_cloud(points_sonar_m: np.ndarray, sphere_radius_m: float,
     base, why = _working_points(P, seed, seed_radius_m, r, h)
     if why:
         return _not_found(why, method, n_points=len(P))
+    if prepared is not None and seed is not None:
+        raise ValueError("a prepared search covers the whole cloud, not the points near a seed")
     W = P if base is None else P[base]
-    cands, info = find_candidates(W, r, h, rng_seed, max_candidates=MAX_JUDGED)
+    cands, info = find_candidates(W, r, h, rng_seed, max_candidates=MAX_JUDGED, prepared=prepared)
     if not cands:
         return _not_found("no sphere-like cluster", method, n_points=len(P),
                           n_clusters=int(info.get("n_clusters", 0)))

@@ -355,17 +355,37 @@ def ring_sectors(dirs: np.ndarray, axis: np.ndarray, alpha: float, width: float,
     return int((cnt >= min_points).sum())
 
 
-def find_candidates(points_m: np.ndarray, radius_m: float, half_angle_rad: float,
-                    key: int = 0, max_points: int = 40_000,
-                    max_candidates: int = 6) -> tuple[list[Candidate], dict]:
-    """Sphere candidates in a cloud (sonar frame, m) for a sphere of nominal ``radius_m``.
+@dataclass(frozen=True)
+class PreparedSearch:
+    """The part of :func:`find_candidates` that does not depend on the beam half-angle, for one
+    cloud, sphere radius, ``key`` and ``max_points``: the thinned points ``P`` (m), the clusters
+    worth a look (``clusters``: (cluster id, its voxels without their local planes (m), the bit
+    generator state of its random stream after that step)) and the counts of ``info``
+    (voxels, planes, plane noise, clusters). Computed once by :func:`prepare_search`, it lets
+    the beam width's crop detection (nominal width) and the final one (estimated width) of the
+    same cloud share it; :func:`find_candidates` gives the same candidates with or without it."""
 
-    ``key`` seeds the random draws (:mod:`.streams`): the thinning by the points' own
-    hashes, the plane search by a stream of its own, and each cluster's RANSAC by a stream
-    seeded from that cluster's voxels, so what happens in one cluster (one more look, another
-    object far away, the points' order) does not change the draws in another.
-    Returns (at most ``max_candidates`` candidates, best first, and an info dict of counts).
-    """
+    n_points: int
+    radius_m: float
+    key: int
+    max_points: int
+    P: np.ndarray
+    clusters: tuple
+    info: dict
+
+    def check(self, points_m: np.ndarray, radius_m: float, key: int, max_points: int) -> None:
+        """Raise ValueError when this search was not prepared for these arguments (a cheap
+        guard: the point count, radius, key and thinning; the caller vouches for the points)."""
+        if (len(points_m), float(radius_m), int(key), int(max_points)) != \
+                (self.n_points, self.radius_m, self.key, self.max_points):
+            raise ValueError("the prepared search is of another cloud, radius, key or thinning")
+
+
+def prepare_search(points_m: np.ndarray, radius_m: float, key: int = 0,
+                   max_points: int = 40_000) -> PreparedSearch:
+    """The beam-width-independent steps of :func:`find_candidates` on a cloud (sonar frame, m):
+    thinning, voxels, large planes, their noise, clustering, and each large enough cluster's
+    local planes (which draw from the cluster's own stream; its state after them is kept)."""
     r = float(radius_m)
     voxel = float(np.clip(r / 3.0, 0.005, 0.15))
     P = thin_hashed(points_m, max_points, key)
@@ -377,16 +397,55 @@ def find_candidates(points_m: np.ndarray, radius_m: float, half_angle_rad: float
     Qk = Q[keep]
     labels = cluster_points(Qk, 2.2 * voxel)
     ids, counts = np.unique(labels, return_counts=True)
-    cands: list[Candidate] = []
+    clusters = []
     for cid in ids[np.argsort(-counts, kind="stable")]:
         X = Qk[labels == cid]
         if len(X) < MIN_VOXELS:
             break
         if np.ptp(X, axis=0).max() >= 0.6 * r:
             rng = content_rng(X, 0.1 * voxel, key)
-            cands += _cluster_candidates(X, int(cid), r, half_angle_rad, voxel, rng)
-    cands.sort(key=lambda k: -k.quality)
+            X = _cluster_voxels(X, r, voxel, rng)
+            clusters.append((int(cid), _read_only(X), rng.bit_generator.state))
     info["n_clusters"] = int((counts >= MIN_VOXELS).sum())
+    return PreparedSearch(len(points_m), r, int(key), int(max_points), _read_only(P), tuple(clusters), info)
+
+
+def _read_only(A: np.ndarray) -> np.ndarray:
+    """A read-only view of ``A`` (``A`` itself stays writeable): a shared search is never changed."""
+    v = A.view()
+    v.flags.writeable = False
+    return v
+
+
+def _stream(state: dict) -> np.random.Generator:
+    """A fresh generator at a saved bit generator state (the saved state stays as it was)."""
+    bg = getattr(np.random, state["bit_generator"])()
+    bg.state = state
+    return np.random.Generator(bg)
+
+
+def find_candidates(points_m: np.ndarray, radius_m: float, half_angle_rad: float,
+                    key: int = 0, max_points: int = 40_000,
+                    max_candidates: int = 6, prepared: PreparedSearch | None = None) -> tuple[list[Candidate], dict]:
+    """Sphere candidates in a cloud (sonar frame, m) for a sphere of nominal ``radius_m``.
+
+    ``key`` seeds the random draws (:mod:`.streams`): the thinning by the points' own
+    hashes, the plane search by a stream of its own, and each cluster's RANSAC by a stream
+    seeded from that cluster's voxels, so what happens in one cluster (one more look, another
+    object far away, the points' order) does not change the draws in another.
+    ``prepared``: :func:`prepare_search` of the same points, radius, key and max_points (else
+    computed here); the result is the same either way.
+    Returns (at most ``max_candidates`` candidates, best first, and an info dict of counts).
+    """
+    r = float(radius_m)
+    if prepared is None:
+        prepared = prepare_search(points_m, r, key, max_points)
+    prepared.check(points_m, r, key, max_points)
+    P, info = prepared.P, dict(prepared.info)
+    cands: list[Candidate] = []
+    for cid, X, state in prepared.clusters:
+        cands += _cluster_candidates(X, cid, r, half_angle_rad, info["voxel_m"], _stream(state))
+    cands.sort(key=lambda k: -k.quality)
     info["n_coarse_candidates"] = len(cands)
     # the prescreen tells a sphere from round rocks (a few mm of spread against centimetres);
     # the coarse quality does not: on a seabed the ball ranked 13th of 37 at the right beam width
@@ -408,12 +467,19 @@ LONG_WIDTH = 3.5  # radii: a cluster at most this wide in its two shorter extent
 MAX_LOOKS = 12  # RANSAC looks in one cluster (a big one, a room with no plane removed, hides many round things)
 
 
+def _cluster_voxels(X: np.ndarray, r: float, voxel: float, rng: np.random.Generator) -> np.ndarray:
+    """A cluster's voxels as its RANSAC sees them: without its local planes when it is large
+    (:func:`_without_local_planes`, drawing from ``rng``)."""
+    if np.ptp(X, axis=0).max() > 3.0 * r and len(X) >= 3 * LOCAL_PLANE_MIN:
+        return _without_local_planes(X, r, voxel, rng)
+    return X
+
+
 def _cluster_candidates(X: np.ndarray, cid: int, r: float, h: float, voxel: float,
                         rng: np.random.Generator) -> list[Candidate]:
-    """Sphere candidates in one cluster of voxels: RANSAC, take the shell out, look again (a
-    big cluster, a ball with the block, chair or person it touches, hides more than one)."""
-    if np.ptp(X, axis=0).max() > 3.0 * r and len(X) >= 3 * LOCAL_PLANE_MIN:
-        X = _without_local_planes(X, r, voxel, rng)
+    """Sphere candidates in one cluster of voxels (:func:`_cluster_voxels`): RANSAC, take the
+    shell out, look again (a big cluster, a ball with the block, chair or person it touches,
+    hides more than one)."""
     out = []
     bloom = float(np.linalg.norm(X.mean(axis=0))) * np.tan(h)
     thr = max(0.2 * r, 0.75 * voxel)
