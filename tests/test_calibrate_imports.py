@@ -35,3 +35,19 @@ def test_lopsided_threshold_is_scipy_stats_chi2_quantile():
     from calib_core.detect.image.limb import LOPSIDED_ORDERS, LOPSIDED_SIGNIFICANCE, LOPSIDED_SIGNIFICANCE_CHI2
 
     assert LOPSIDED_SIGNIFICANCE_CHI2 == float(chi2.ppf(LOPSIDED_SIGNIFICANCE, 2 * len(LOPSIDED_ORDERS)))
+
+
+def test_calibrate_after_detect_imports_no_detector_and_no_scipy_optimize(tmp_path):
+    """Right after ``detect`` the entries are reused: no detector, nor scipy.optimize or
+    scipy.spatial (0.3-0.5 s each of the 1.0 s target), is imported on the way to the solve."""
+    root = build_session(tmp_path, n_captures=6, cameras=("cam1", "cam2"), background=True)
+    env = dict(os.environ, PYTHONPATH=str(ROOT), SONARCAL_WORKERS="1")
+    probe = PROBE.replace("('open3d', 'scipy.stats')", "('open3d', 'scipy.stats', 'scipy.optimize', 'scipy.spatial')")
+    p = subprocess.run([sys.executable, "-c", probe, "detect", str(root)], capture_output=True, text=True, env=env,
+                       timeout=300)
+    assert "RC=0" in p.stdout, p.stderr[-2000:]
+    p = subprocess.run([sys.executable, "-c", probe, "calibrate", str(root), "--quiet"], capture_output=True,
+                       text=True, env=env, timeout=300)
+    assert "RC=0" in p.stdout, p.stderr[-2000:]
+    assert "DETECTORS=False" in p.stdout, p.stdout[-2000:]
+    assert "HEAVY=\n" in p.stdout, p.stdout[-2000:]
