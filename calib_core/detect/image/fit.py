@@ -179,13 +179,15 @@ def _typical_gradient(roi: np.ndarray) -> float:
 
 def refine_candidate(image: np.ndarray, cam: CameraModel, cand: Candidate, sphere_radius_m: float,
                      a_range_rad: tuple[float, float], background: np.ndarray | None = None,
-                     rng: np.random.Generator | None = None) -> CandidateFit:
+                     rng: np.random.Generator | None = None, regrow: bool = True) -> CandidateFit:
     """Fit the sphere's silhouette cone near a candidate at full resolution.
 
     Args:
         image: (H,W,3) RGB uint8 raw image; background: same-size float32 background or None.
         cam: intrinsics; sphere_radius_m: known radius.
         a_range_rad: plausible cone half-angles (from the range limits).
+        regrow: an outline that outgrew the region cut for the candidate is refined once more
+            in a region cut for itself (:func:`_outgrew_region`).
 
     Returns:
         :class:`CandidateFit` with the centre (raw px), its covariance (px^2) and a score.
@@ -206,6 +208,8 @@ def refine_candidate(image: np.ndarray, cam: CameraModel, cand: Candidate, spher
         return CandidateFit(False, starts)
     for fit1 in starts:
         res = _grown(cam, sig, fit1, R, a_range_rad, rng, sphere_radius_m)
+        if regrow and _outgrew_region(cam, sig, res, R):
+            res = _regrown(image, cam, cand, res, sphere_radius_m, a_range_rad, background)
         # a rescued start is searched for (like the several reading): it must grow into a
         # credible outline (mostly seen, round, the surroundings just outside it); if not, the
         # next start is tried, and without one it counts as no start (the caller then looks
@@ -213,6 +217,41 @@ def refine_candidate(image: np.ndarray, cam: CameraModel, cand: Candidate, spher
         if not _rescued(fit1) or (res.ok and res.credible):
             return res
     return CandidateFit(False, "no round outline")
+
+
+# an outline fitted this much larger than the candidate it grew from (radius ratio), with part of
+# it outside the region of interest cut for the candidate, is looked at again in a region cut for
+# itself (a few tens of per cent are the coarse cues' own size error)
+REGROWN_MIN_RATIO = 1.5
+
+
+def _outgrew_region(cam, sig: Signal, res: CandidateFit, R: float) -> bool:
+    """The fitted outline is much larger than the candidate's radius ``R`` (px) and more than a
+    tenth of it, where it lies in the image, lies outside the region of interest cut for the
+    candidate: pass 2 never read its normals there (it does not use a normal whose band leaves
+    the region), so its support counts only the part the region holds. A small candidate on
+    one arc of a large ball fits the whole ball's cone from that arc; how much of the outline
+    is seen is a question for the image, not for the box."""
+    sil = res.silhouette_px
+    if res.fit is None or sil is None or not np.isfinite(sil).all():
+        return False
+    in_img = cam.in_image(sil, margin_px=1.0)
+    return (_outline_radius(sil) >= REGROWN_MIN_RATIO * R
+            and bool((in_img & ~sig.covers(sil, pass2_half_px(res.fit.sigma_px, R) + 1.0)).mean() > 0.1))
+
+
+def _regrown(image, cam, cand: Candidate, res: CandidateFit, sphere_radius_m, a_range_rad, background) -> CandidateFit:
+    """``res`` refined again from a candidate of its own centre and size (a region holding all of
+    it), on its own random stream (the shared one draws as without this look); the better
+    supported of the two."""
+    sil = res.silhouette_px
+    r = _outline_radius(sil)
+    again = refine_candidate(image, cam, Candidate(sil.mean(axis=0), r, (r, r), 0.0, False, cand.strength, cand.source),
+                             sphere_radius_m, a_range_rad, background, np.random.default_rng(len(sil)), regrow=False)
+    if again.fit is None or again.support < res.support:
+        return res
+    again.extras["regrown_from_px"] = round(float(cand.radius_px), 1)
+    return again
 
 
 def _grown(cam, sig: Signal, fit1: ConeFit, R: float, a_range_rad, rng, sphere_radius_m: float) -> CandidateFit:
